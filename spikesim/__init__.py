@@ -1,0 +1,41 @@
+"""spikesim: a physics-faithful simulator of Bayer integrate-and-fire spike cameras.
+
+Public API (DESIGN.md §4)::
+
+    import spikesim as ss
+    sensor = ss.Sensor.preset("color-1000x1000-20k")
+    stream = ss.simulate(ss.scenes.Static(image), sensor, n_readouts=1000, seed=0)
+"""
+
+from spikesim import cfa, noise, scenes
+from spikesim._version import __version__
+from spikesim.errors import (
+    SpikeSimError,
+    SpikeSimFileError,
+    SpikeSimFormatError,
+    SpikeSimTypeError,
+    SpikeSimValueError,
+)
+from spikesim.ideal import ideal_spike_times
+from spikesim.sensor import Sensor, list_presets
+from spikesim.simulate import SimulationRun, SpikeChunk, SpikeStream, simulate, simulate_chunks
+
+__all__ = [
+    "__version__",
+    "Sensor",
+    "list_presets",
+    "simulate",
+    "simulate_chunks",
+    "SimulationRun",
+    "SpikeStream",
+    "SpikeChunk",
+    "ideal_spike_times",
+    "cfa",
+    "noise",
+    "scenes",
+    "SpikeSimError",
+    "SpikeSimValueError",
+    "SpikeSimTypeError",
+    "SpikeSimFileError",
+    "SpikeSimFormatError",
+]

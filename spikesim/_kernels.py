@@ -1,0 +1,343 @@
+"""numba kernels of the integrate-and-fire sensor (no validation, no I/O).
+
+Model (DESIGN.md §2; Dong et al., AAAI 2024, eq. 1):
+
+* Radiance is piecewise linear in time between key frames.  The charge of
+  readout ``n`` (the period ``[n, n+1)`` in readout units) is the exact
+  integral ``q_n = gain · Ī_n + offset`` where ``Ī_n`` is the mean radiance
+  over the period, evaluated in float64:
+
+  - inside one segment ``[t_a, t_b]``: ``Ī_n = I_a + (I_b − I_a) · φ_n`` with
+    ``φ_n = (n + ½ − t_a) · inv_span`` (the mean of a linear function is its
+    value at the midpoint);
+  - a period that contains key times is split into pieces, each contributing
+    ``length · (I_a + (I_b − I_a) · φ_mid)``;
+  - before the first and after the last key the radiance is held.
+
+* The accumulator, in units of the pixel's own threshold, is exact fixed
+  point: a 64-bit fraction (units of 2⁻⁶⁴ θ) and a signed 64-bit whole part.
+  The per-readout charge is converted once (truncation to 2⁻⁶⁴ θ) and then
+  added exactly, so there is no drift however long the stream.
+* Clocked readout: after adding ``q_n`` the pixel emits 1 if the charge reached
+  one threshold; at most one spike per readout.  Reset ``modulo`` keeps the
+  fraction (A mod θ), ``subtract`` removes one θ (excess accumulates), ``zero``
+  clears the accumulator.
+* Noise (each optional, all drawn from counter-based hashes of
+  (stream, pixel, readout), see ``spikesim.rng``):
+  paper mode ``Ĩ = max(Ī + σ(Ī)·z/255, 0)``, ``σ² = σ_g² + σ_p²·255·Ī``;
+  Poisson shot noise on ``q·E`` electrons (E electrons per threshold);
+  threshold jitter ``θ(1 + σ_t z)`` drawn at every firing for the next cycle.
+
+Work is split in blocks of 64 pixels of one row (8 packed bytes) run in
+parallel; time is the inner loop of each block so its state stays in
+registers/L1.  Fast paths (modulo reset, no per-readout noise, charge < 1
+threshold per readout) use integer adds only for static segments.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from spikesim.rng import normal, pixel_bits, readout_key, uniform
+
+BLOCK = 64  # pixels per block: one uint64 spike mask = 8 packed bytes
+TWO64 = 2.0**64
+FAST_Q_LIMIT = 1.0 - 2.0**-20  # fast path only when every charge is safely < 1 θ
+
+RESET_MODULO = 0
+RESET_SUBTRACT = 1
+RESET_ZERO = 2
+
+RUN_SEGMENT = 0  # readouts [start, stop) inside one segment (or a hold)
+RUN_PIECES = 1  # one readout whose period contains key times
+
+_U1 = np.uint64(1)
+_U8 = np.uint64(8)
+_UFF = np.uint64(0xFF)
+_POISSON_INVERSION_MAX = 10.0
+
+_opts = dict(cache=True, error_model="numpy", boundscheck=False)
+
+
+@njit(inline="always", **_opts)
+def _store_mask(out, t, y, byte0, nbytes_row, m):
+    for j in range(8):
+        b = byte0 + j
+        if b < nbytes_row:
+            out[t, y, b] = np.uint8((m >> (np.uint64(j) * _U8)) & _UFF)
+
+
+@njit(inline="always", **_opts)
+def _to_fixed(q):
+    """Split a non-negative charge (thresholds) into (whole int64, fraction uint64)."""
+    w = np.floor(q)
+    return np.int64(w), np.uint64((q - w) * TWO64)
+
+
+@njit(**_opts)
+def poisson(lam, bits):
+    """Poisson deviate with mean ``lam`` from 64 random bits (exact samplers).
+
+    ``lam < 10``: inversion of the CDF with one uniform.  Otherwise the
+    transformed rejection with squeeze of W. Hörmann, "The transformed
+    rejection method for generating Poisson random variables", Insurance:
+    Mathematics and Economics 12 (1993); attempt j uses two uniforms hashed
+    from ``bits`` and j.
+    """
+    if lam <= 0.0:
+        return 0.0
+    if lam < _POISSON_INVERSION_MAX:
+        u = uniform(bits)
+        p = math.exp(-lam)
+        cdf = p
+        k = 0.0
+        while u > cdf and k < 200.0:
+            k += 1.0
+            p *= lam / k
+            cdf += p
+        return k
+    slam = math.sqrt(lam)
+    loglam = math.log(lam)
+    b = 0.931 + 2.53 * slam
+    a = -0.059 + 0.02483 * b
+    inv_alpha = 1.1239 + 1.1328 / (b - 3.4)
+    v_r = 0.9277 - 3.6224 / (b - 2.0)
+    j = np.uint64(0)
+    while True:
+        u = uniform(pixel_bits(bits, j)) - 0.5
+        v = uniform(pixel_bits(bits, j + _U1))
+        j += np.uint64(2)
+        us = 0.5 - abs(u)
+        k = np.floor((2.0 * a / us + b) * u + lam + 0.43)
+        if us >= 0.07 and v <= v_r:
+            return k
+        if k < 0.0 or (us < 0.013 and v > us):
+            continue
+        lhs = math.log(v) + math.log(inv_alpha) - math.log(a / (us * us) + b)
+        if lhs <= -lam + k * loglam - math.lgamma(k + 1.0):
+            return k
+
+
+@njit(inline="always", **_opts)
+def _segment_radiance(frames, a, b, y, x0, ia, di):
+    """Per-lane I_a and I_b − I_a of a segment for the block at (y, x0)."""
+    for lane in range(BLOCK):
+        va = np.float64(frames[a, y, x0 + lane])
+        ia[lane] = va
+        di[lane] = np.float64(frames[b, y, x0 + lane]) - va
+
+
+@njit(inline="always", **_opts)
+def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, x0, ibuf):
+    """Mean radiance of a readout whose period is split at key times."""
+    for lane in range(BLOCK):
+        ibuf[lane] = 0.0
+    for p in range(p0, p1):
+        a = piece_a[p]
+        b = piece_b[p]
+        ln = piece_len[p]
+        phi = piece_phi[p]
+        for lane in range(BLOCK):
+            va = np.float64(frames[a, y, x0 + lane])
+            vb = np.float64(frames[b, y, x0 + lane])
+            ibuf[lane] += ln * (va + (vb - va) * phi)
+
+
+@njit(inline="always", **_opts)
+def _fast_static(n0, n1, qconst, frac, out, t_off, y, byte0, nbytes_row):
+    """Modulo reset, constant charge < 1 θ: integer add and carry only."""
+    qf = np.empty(BLOCK, np.uint64)
+    for lane in range(BLOCK):
+        qf[lane] = np.uint64(qconst[lane] * TWO64)
+    for n in range(n0, n1):
+        m = np.uint64(0)
+        for lane in range(BLOCK):
+            s = frac[lane] + qf[lane]
+            m |= np.uint64(s < frac[lane]) << np.uint64(lane)
+            frac[lane] = s
+        _store_mask(out, n - t_off, y, byte0, nbytes_row, m)
+
+
+@njit(inline="always", **_opts)
+def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, byte0,
+                 nbytes_row):
+    """Modulo reset, no per-readout noise, charge < 1 θ, linear radiance."""
+    for n in range(n0, n1):
+        phi = (np.float64(n) + 0.5 - t_a) * inv_span
+        m = np.uint64(0)
+        for lane in range(BLOCK):
+            q = gain[lane] * (ia[lane] + di[lane] * phi) + offset[lane]
+            s = frac[lane] + np.uint64(q * TWO64)
+            m |= np.uint64(s < frac[lane]) << np.uint64(lane)
+            frac[lane] = s
+        _store_mask(out, n - t_off, y, byte0, nbytes_row, m)
+
+
+@njit(inline="always", **_opts)
+def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
+                  paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter):
+    """One readout of the general model for a block; returns the spike mask."""
+    use_paper = paper_sg2 > 0.0 or paper_sp2 > 0.0
+    use_shot = electrons[0] >= 0.0
+    rk_paper = readout_key(key_paper, n) if use_paper else np.uint64(0)
+    rk_shot = readout_key(key_shot, n) if use_shot else np.uint64(0)
+    rk_jit = readout_key(key_jitter, n) if jitter > 0.0 else np.uint64(0)
+    pix0 = y * width + x0
+    m = np.uint64(0)
+    for lane in range(BLOCK):
+        if x0 + lane >= width:
+            break
+        pix = pix0 + lane
+        level = ibuf[lane]
+        if use_paper:
+            sd = math.sqrt(paper_sg2 + paper_sp2 * 255.0 * level) / 255.0
+            level = max(level + sd * normal(pixel_bits(rk_paper, pix)), 0.0)
+        q = gain[lane] * level + offset[lane]
+        if use_shot:
+            e = electrons[lane]
+            q = poisson(q * e, pixel_bits(rk_shot, pix)) / e
+        qw, qf = _to_fixed(q)
+        s = frac[lane] + qf
+        w = whole[lane] + qw + (1 if s < frac[lane] else 0)
+        if w >= 1:
+            m |= _U1 << np.uint64(lane)
+            if reset == RESET_SUBTRACT:
+                w -= 1
+            else:
+                w = 0
+                if reset == RESET_ZERO:
+                    s = np.uint64(0)
+            if jitter > 0.0:
+                # next threshold θ(1 + ε)  ⇔  charge shifted by −ε
+                eps = jitter * normal(pixel_bits(rk_jit, pix))
+                ef = np.uint64(min(abs(eps), 0.5) * TWO64)
+                if eps > 0.0:
+                    t = s - ef
+                    if t > s:
+                        w -= 1
+                else:
+                    t = s + ef
+                    if t < s:
+                        w += 1
+                s = t
+        frac[lane] = s
+        whole[lane] = w
+    return m
+
+
+@njit(**_opts)
+def _block_runs(frames, y, x0, width, nbytes_row, t_off,
+                run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0, run_p1,
+                piece_a, piece_b, piece_len, piece_phi,
+                gain, offset, electrons, frac, whole, out, reset, fast_ok,
+                paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter):
+    """All runs of one chunk for one 64-pixel block and one accumulator set."""
+    ia = np.empty(BLOCK, np.float64)
+    di = np.empty(BLOCK, np.float64)
+    ibuf = np.empty(BLOCK, np.float64)
+    byte0 = x0 // 8
+    for r in range(run_kind.shape[0]):
+        n0 = run_start[r]
+        n1 = run_stop[r]
+        if run_kind[r] == RUN_PIECES:
+            _pieces_radiance(frames, run_p0[r], run_p1[r], piece_a, piece_b, piece_len,
+                             piece_phi, y, x0, ibuf)
+            m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
+                              reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
+                              key_jitter)
+            _store_mask(out, n0 - t_off, y, byte0, nbytes_row, m)
+            continue
+        t_a = run_ta[r]
+        inv = run_inv[r]
+        _segment_radiance(frames, run_a[r], run_b[r], y, x0, ia, di)
+        use_fast = fast_ok
+        static = True
+        if use_fast:
+            phi_first = (np.float64(n0) + 0.5 - t_a) * inv
+            phi_last = (np.float64(n1 - 1) + 0.5 - t_a) * inv
+            for lane in range(BLOCK):
+                if di[lane] != 0.0:
+                    static = False
+                q1 = gain[lane] * (ia[lane] + di[lane] * phi_first) + offset[lane]
+                q2 = gain[lane] * (ia[lane] + di[lane] * phi_last) + offset[lane]
+                if not (q1 < FAST_Q_LIMIT and q2 < FAST_Q_LIMIT):
+                    use_fast = False
+        if use_fast and static:
+            for lane in range(BLOCK):
+                ibuf[lane] = gain[lane] * (ia[lane] + di[lane] * 0.0) + offset[lane]
+            _fast_static(n0, n1, ibuf, frac, out, t_off, y, byte0, nbytes_row)
+        elif use_fast:
+            _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, byte0,
+                         nbytes_row)
+        else:
+            for n in range(n0, n1):
+                phi = (np.float64(n) + 0.5 - t_a) * inv
+                for lane in range(BLOCK):
+                    ibuf[lane] = ia[lane] + di[lane] * phi
+                m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
+                                  reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
+                                  key_jitter)
+                _store_mask(out, n - t_off, y, byte0, nbytes_row, m)
+
+
+@njit(parallel=True, **_opts)
+def simulate_chunk(frames, width, t_off,
+                   run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0, run_p1,
+                   piece_a, piece_b, piece_len, piece_phi,
+                   gain, offset, electrons, frac, whole, out, reset, fast_ok,
+                   paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
+                   clean, c_frac, c_whole, c_out, c_gain, c_offset, c_electrons):
+    """Simulate readouts ``[run_start[0], run_stop[-1])`` for every pixel.
+
+    ``frames`` (K, H, Wp) float32 are the sensor-channel radiances at the
+    chunk's key frames, with ``Wp`` a multiple of 64 (padding lanes zero).
+    ``gain``, ``offset`` (H, Wp) float64 and ``electrons`` (H, Wp) float64
+    (all −1 when shot noise is off) are the per-pixel charge constants;
+    ``frac`` (H, Wp) uint64 and ``whole`` (H, Wp) int64 the accumulator,
+    updated in place.  ``out`` (T, H, ceil(W/8)) uint8 receives packed bits
+    for readout ``n`` at ``out[n − t_off]``.  When ``clean`` is true the
+    noise-free twin is advanced in the same pass with its own arrays.
+    """
+    height = frames.shape[1]
+    padded = frames.shape[2]
+    nblk = padded // BLOCK
+    nbytes_row = out.shape[2]
+    for job in prange(height * nblk):
+        y = job // nblk
+        x0 = (job % nblk) * BLOCK
+        sl = slice(x0, x0 + BLOCK)
+        f = frac[y, sl].copy()
+        w = whole[y, sl].copy()
+        _block_runs(frames, y, x0, width, nbytes_row, t_off,
+                    run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
+                    run_p1, piece_a, piece_b, piece_len, piece_phi,
+                    gain[y, sl], offset[y, sl], electrons[y, sl], f, w, out, reset, fast_ok,
+                    paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter)
+        frac[y, sl] = f
+        whole[y, sl] = w
+        if clean:
+            cf = c_frac[y, sl].copy()
+            cw = c_whole[y, sl].copy()
+            _block_runs(frames, y, x0, width, nbytes_row, t_off,
+                        run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
+                        run_p1, piece_a, piece_b, piece_len, piece_phi,
+                        c_gain[y, sl], c_offset[y, sl], c_electrons[y, sl], cf, cw, c_out,
+                        reset, reset == RESET_MODULO, 0.0, 0.0, np.uint64(0), np.uint64(0),
+                        0.0, np.uint64(0))
+            c_frac[y, sl] = cf
+            c_whole[y, sl] = cw
+
+
+@njit(parallel=True, **_opts)
+def init_state(key, height, width, padded, uniform_init):
+    """Initial accumulator: uniform fraction in [0, 1) θ per pixel, or zero."""
+    frac = np.zeros((height, padded), np.uint64)
+    if uniform_init:
+        for y in prange(height):
+            rk = readout_key(key, 0)
+            for x in range(width):
+                frac[y, x] = pixel_bits(rk, y * width + x)
+    return frac

@@ -1,0 +1,41 @@
+"""Bit packing of spike frames (DESIGN.md §3).
+
+Spikes are packed along the width axis with *little* bit order: pixel ``x`` of a
+row lives in byte ``x // 8``, bit ``x % 8`` (LSB first), ``ceil(W/8)`` bytes per
+row, padding bits zero.  This is ``np.packbits(..., axis=-1, bitorder="little")``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spikesim.errors import SpikeSimTypeError, bad_value
+
+__all__ = ["packed_width", "pack", "unpack"]
+
+
+def packed_width(width: int) -> int:
+    """Bytes per packed row for ``width`` pixels: ``ceil(width / 8)``."""
+    return (int(width) + 7) // 8
+
+
+def pack(spikes: np.ndarray) -> np.ndarray:
+    """Pack a (..., W) array of 0/1 values into (..., ceil(W/8)) uint8, little bit order."""
+    spikes = np.asarray(spikes)
+    if spikes.ndim < 1:
+        raise SpikeSimTypeError("spikes must have at least one dimension (..., W)")
+    if spikes.dtype != np.bool_ and spikes.size and (spikes.min() < 0 or spikes.max() > 1):
+        raise bad_value("spikes", f"values in [{spikes.min()}, {spikes.max()}]", "0/1 values")
+    return np.packbits(spikes.astype(bool, copy=False), axis=-1, bitorder="little")
+
+
+def unpack(packed: np.ndarray, width: int) -> np.ndarray:
+    """Unpack (..., ceil(W/8)) uint8 into (..., W) uint8 0/1 (little bit order)."""
+    packed = np.asarray(packed)
+    if packed.dtype != np.uint8:
+        raise SpikeSimTypeError(f"packed must be uint8, got {packed.dtype}")
+    if packed.shape[-1] != packed_width(width):
+        raise bad_value(
+            "packed.shape[-1]", packed.shape[-1], f"ceil(width/8) = {packed_width(width)}"
+        )
+    return np.unpackbits(packed, axis=-1, count=int(width), bitorder="little")

@@ -1,0 +1,70 @@
+"""Command line ``spikesim``: a thin layer that parses, calls library functions,
+and maps errors to exit codes.
+
+Each sub-command lives in ``spikesim/commands/<name>.py`` and exposes
+``register(subparsers)``, which adds its parser and sets ``func`` to a callable
+taking the parsed namespace and returning an exit code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from spikesim._version import __version__
+from spikesim.errors import SpikeSimError
+
+#: Modules under spikesim.commands, in the order their commands are listed.
+COMMAND_MODULES = (
+    "demo",
+    "simulate",
+    "presets",
+    "scenes",
+    "dataset",
+    "info",
+    "convert",
+    "preview",
+    "analyze",
+)
+
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_ERROR = 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="spikesim", description="Bayer spike-camera simulator (spikesim)."
+    )
+    parser.add_argument("--version", action="version", version=f"spikesim {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(f"spikesim.commands.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"spikesim.commands.{name}":
+                continue  # command not part of this build
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_USAGE
+    try:
+        return int(args.func(args) or EXIT_OK)
+    except SpikeSimError as exc:
+        print(f"spikesim {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print(f"spikesim {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

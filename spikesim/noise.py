@@ -1,0 +1,241 @@
+"""Noise models of the spike sensor (DESIGN.md §2).
+
+Two families, each source optional; a source whose parameter is zero (or
+``False``) draws no random numbers and adds no work to the kernel.
+
+*Paper mode* — :class:`PaperNoise`, eq. 3 and 5 of Dong et al., "Joint
+Demosaicing and Denoising for Spike Camera" (AAAI 2024): in every readout the
+latent intensity of each pixel is ``ỹ = y + n``, ``n ~ N(0, σ_g² + σ_p²·y)``,
+with y and σ in 8-bit digital numbers (DN, 0..255 for 0..1 radiance) and
+negative light clipped at 0.  ``σ_p = 0`` is the Gaussian (GN) case,
+``σ_p > 0`` Poisson–Gaussian (GPN).
+
+*Physical mode* — :class:`PhysicalNoise`: per-pixel fixed patterns
+(threshold mismatch, photo-response non-uniformity, dark current with spread,
+hot pixels) and per-readout temporal noise (Poisson photon shot noise on the
+collected electrons, comparator threshold noise per firing cycle).  Default
+magnitudes follow published circuit-level figures for spike-camera pixels
+(SCSim, Zhao et al. 2024): threshold FPN 4.5 %, PRNU 5.8 %, temporal threshold
+noise 0.6 % per comparison, dark current 0.5 % of full scale with 39 %
+pixel-to-pixel spread.  ``electrons_per_threshold`` and the hot-pixel figures
+are our stated assumptions, not measured values; fit them to a capture.
+
+Fixed patterns are a property of the chip, so they are keyed on ``fpn_seed``
+(not on the simulation seed): the same sensor keeps its pattern across runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from spikesim import rng
+from spikesim.errors import bad_value
+
+__all__ = ["PaperNoise", "PhysicalNoise", "noise_from_dict", "FixedPattern", "fixed_pattern"]
+
+
+def _check_nonneg(name: str, value: float, upper: float = math.inf) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise bad_value(name, value, f"a real number in [0, {upper}]") from None
+    if not (math.isfinite(v) and 0.0 <= v <= upper):
+        raise bad_value(name, value, f"a finite number in [0, {upper}]")
+    return v
+
+
+class _NoiseBase:
+    kind: str = ""
+
+    def to_dict(self) -> dict:
+        return {"type": self.kind, **dataclasses.asdict(self)}
+
+    def replace(self, **changes):
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class PaperNoise(_NoiseBase):
+    """Per-readout Gaussian / Poisson–Gaussian noise on the latent intensity.
+
+    Parameters
+    ----------
+    sigma_g : float
+        Signal-independent standard deviation, 8-bit DN (0..255 scale).
+    sigma_p : float
+        Signal-dependent coefficient, sqrt(DN): the variance is
+        ``sigma_g**2 + sigma_p**2 * y`` with ``y`` in DN.
+    """
+
+    sigma_g: float = 0.0
+    sigma_p: float = 0.0
+    kind = "paper"
+
+    def __post_init__(self):
+        object.__setattr__(self, "sigma_g", _check_nonneg("sigma_g", self.sigma_g, 255.0))
+        object.__setattr__(self, "sigma_p", _check_nonneg("sigma_p", self.sigma_p, 255.0))
+
+    @property
+    def per_readout(self) -> bool:
+        """True when the model draws a random number per pixel and readout."""
+        return self.sigma_g > 0 or self.sigma_p > 0
+
+    def variance_dn(self, y_dn):
+        """Noise variance (DN²) at latent intensity ``y_dn`` (DN), eq. 5."""
+        return self.sigma_g**2 + self.sigma_p**2 * np.asarray(y_dn, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class PhysicalNoise(_NoiseBase):
+    """Circuit-level noise sources of an integrate-and-fire spike pixel.
+
+    Parameters
+    ----------
+    electrons_per_threshold : float
+        Photo-electrons that fill one nominal threshold θ (e⁻).  Sets the
+        photon shot noise: the relative noise of one firing cycle is
+        ``1/sqrt(electrons_per_threshold)``.  Assumption (default 1000 e⁻).
+    shot_noise : bool
+        Draw the collected electrons of each readout from a Poisson law.
+    dark_current_rel : float
+        Mean dark current as a fraction of the full-scale photo-current
+        (radiance-equivalent; 0.005 = 0.5 %).
+    dark_current_spread : float
+        Pixel-to-pixel relative standard deviation of the dark current
+        (log-normal with mean 1, coefficient of variation = this value).
+    threshold_mismatch : float
+        Relative standard deviation of each pixel's threshold (fixed pattern).
+    prnu : float
+        Photo-response non-uniformity: relative standard deviation of each
+        pixel's gain (fixed pattern).
+    temporal_threshold_noise : float
+        Relative standard deviation of the threshold, drawn anew for every
+        firing cycle (comparator noise).
+    hot_pixel_fraction : float
+        Fraction of pixels that are hot (0..1).
+    hot_pixel_dark_rel : float
+        Extra dark current of a hot pixel, as a fraction of full scale.
+    fpn_seed : int
+        Seed of the chip's fixed patterns (independent of the simulation seed).
+    """
+
+    electrons_per_threshold: float = 1000.0
+    shot_noise: bool = True
+    dark_current_rel: float = 0.005
+    dark_current_spread: float = 0.39
+    threshold_mismatch: float = 0.045
+    prnu: float = 0.058
+    temporal_threshold_noise: float = 0.006
+    hot_pixel_fraction: float = 1e-4
+    hot_pixel_dark_rel: float = 0.2
+    fpn_seed: int = 0
+    kind = "physical"
+
+    def __post_init__(self):
+        e = self.electrons_per_threshold
+        if not (isinstance(e, (int, float)) and math.isfinite(e) and e > 0):
+            raise bad_value("electrons_per_threshold", e, "a finite number of electrons > 0")
+        object.__setattr__(self, "electrons_per_threshold", float(e))
+        if not isinstance(self.shot_noise, (bool, np.bool_)):
+            raise bad_value("shot_noise", self.shot_noise, "True or False")
+        object.__setattr__(self, "shot_noise", bool(self.shot_noise))
+        for name, upper in (
+            ("dark_current_rel", 1e6),
+            ("dark_current_spread", 10.0),
+            ("threshold_mismatch", 0.3),
+            ("prnu", 0.3),
+            ("temporal_threshold_noise", 0.1),
+            ("hot_pixel_fraction", 1.0),
+            ("hot_pixel_dark_rel", 1e6),
+        ):
+            object.__setattr__(self, name, _check_nonneg(name, getattr(self, name), upper))
+        if not isinstance(self.fpn_seed, (int, np.integer)) or self.fpn_seed < 0:
+            raise bad_value("fpn_seed", self.fpn_seed, "a non-negative integer")
+        object.__setattr__(self, "fpn_seed", int(self.fpn_seed))
+
+    @property
+    def per_readout(self) -> bool:
+        return self.shot_noise or self.temporal_threshold_noise > 0
+
+    @property
+    def has_fixed_pattern(self) -> bool:
+        return (
+            self.threshold_mismatch > 0
+            or self.prnu > 0
+            or self.dark_current_rel > 0
+            or (self.hot_pixel_fraction > 0 and self.hot_pixel_dark_rel > 0)
+        )
+
+
+def noise_from_dict(d: dict | None):
+    """Rebuild a noise model from ``to_dict()`` output (``None`` → no noise)."""
+    if d is None:
+        return None
+    if not isinstance(d, dict) or "type" not in d:
+        raise bad_value("noise", d, "None or a dict with a 'type' key ('paper' or 'physical')")
+    params = {k: v for k, v in d.items() if k != "type"}
+    classes = {"paper": PaperNoise, "physical": PhysicalNoise}
+    cls = classes.get(d["type"])
+    if cls is None:
+        raise bad_value("noise.type", d["type"], f"one of {sorted(classes)}")
+    known = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(params) - known)
+    if unknown:
+        raise bad_value(f"noise ({d['type']}) keys", unknown, f"keys among {sorted(known)}")
+    return cls(**params)
+
+
+@dataclass(frozen=True)
+class FixedPattern:
+    """Per-pixel constants of the charge model, in units of the pixel's own threshold.
+
+    The deterministic charge of one readout is ``gain · Ī + offset`` thresholds,
+    where ``Ī`` is the mean radiance of the readout (relative units).
+    ``electrons`` is the number of electrons in the pixel's threshold (for
+    shot noise), or ``None`` when shot noise is off.
+    """
+
+    gain: np.ndarray  # (H, W) float64, thresholds per readout at radiance 1
+    offset: np.ndarray  # (H, W) float64, thresholds per readout (dark current)
+    electrons: np.ndarray | None  # (H, W) float64 e⁻ per threshold
+
+
+def fixed_pattern(noise, height: int, width: int, full_scale_rate: float) -> FixedPattern:
+    """Draw the chip's fixed patterns (or uniform constants for an ideal sensor).
+
+    With threshold θ_i = θ·t_i, gain g_i and dark current d_i (radiance
+    equivalent), the charge per readout in units of θ_i is
+    ``r·(g_i·Ī + d_i)/t_i`` with r = ``full_scale_rate``.
+    """
+    shape = (height, width)
+    r = float(full_scale_rate)
+    if not isinstance(noise, PhysicalNoise):
+        return FixedPattern(np.full(shape, r), np.zeros(shape), None)
+    n_pix = height * width
+    seed = noise.fpn_seed
+    t_rel = np.ones(n_pix)
+    if noise.threshold_mismatch > 0:
+        z = rng.pixel_normals(rng.stream_key(seed, rng.STREAM_FPN_THRESHOLD), n_pix)
+        t_rel = np.maximum(1.0 + noise.threshold_mismatch * z, 0.05)
+    g = np.ones(n_pix)
+    if noise.prnu > 0:
+        z = rng.pixel_normals(rng.stream_key(seed, rng.STREAM_FPN_GAIN), n_pix)
+        g = np.maximum(1.0 + noise.prnu * z, 0.0)
+    dark = np.zeros(n_pix)
+    if noise.dark_current_rel > 0:
+        dark = np.full(n_pix, noise.dark_current_rel)
+        if noise.dark_current_spread > 0:
+            s2 = math.log1p(noise.dark_current_spread**2)
+            z = rng.pixel_normals(rng.stream_key(seed, rng.STREAM_FPN_DARK), n_pix)
+            dark = dark * np.exp(-0.5 * s2 + math.sqrt(s2) * z)
+    if noise.hot_pixel_fraction > 0 and noise.hot_pixel_dark_rel > 0:
+        u = rng.pixel_uniforms(rng.stream_key(seed, rng.STREAM_FPN_HOT), n_pix)
+        dark = dark + np.where(u < noise.hot_pixel_fraction, noise.hot_pixel_dark_rel, 0.0)
+    gain = (r * g / t_rel).reshape(shape)
+    offset = (r * dark / t_rel).reshape(shape)
+    electrons = (noise.electrons_per_threshold * t_rel).reshape(shape) if noise.shot_noise else None
+    return FixedPattern(gain, offset, electrons)

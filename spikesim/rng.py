@@ -1,0 +1,255 @@
+"""Counter-based random numbers: a pure function of (seed, stream, pixel, readout).
+
+Every random number the simulator draws is a hash of its coordinates, never a
+state that advances, so the same seed gives the same bits whatever the chunk
+size, the thread count or the order of work (DESIGN.md §2).
+
+Construction (all arithmetic modulo 2**64):
+
+* ``stream_key(seed, stream)`` — a 64-bit key per (seed, noise source);
+* ``readout_key(key, n) = mix64(key + n·G1)``, computed once per readout;
+* ``pixel_bits(rk, p) = mix64(rk ^ p·G2)`` for pixel index ``p = y·W + x``.
+
+``mix64`` is the SplitMix64 output finaliser (Steele, Lea & Flood, "Fast
+splittable pseudorandom number generators", OOPSLA 2014; constants of
+D. Stafford's "Mix13" variant), a bijection of 64-bit words with full
+avalanche.  Uniforms use the top 52 bits, ``u = ((h >> 12) + 0.5) · 2**-52``
+in (0, 1).  Normal deviates use inversion, ``z = √2 · erfinv(2u − 1)``, with
+``erfinv`` evaluated as ``x · g(w)``, ``w = −log(1 − x²)`` (the variable of
+M. Giles, "Approximating the erfinv function", GPU Computing Gems, 2011),
+and g a polynomial fitted by ``tools/fit_erfinv.py`` (relative error
+< 1.3e-9 down to u = 2**-53, i.e. |z| ≤ 8.3).  The logarithm is computed
+here from the float's exponent and a series so that the kernel loops
+vectorise (no libm call).
+
+All functions are numba ``njit`` and also run as plain Python on scalars.
+"""
+
+from __future__ import annotations
+
+import llvmlite.ir as llvm_ir
+import numpy as np
+from numba import njit, types
+from numba.extending import intrinsic
+
+__all__ = [
+    "STREAM_INIT",
+    "STREAM_PAPER",
+    "STREAM_SHOT",
+    "STREAM_JITTER",
+    "STREAM_FPN_THRESHOLD",
+    "STREAM_FPN_GAIN",
+    "STREAM_FPN_DARK",
+    "STREAM_FPN_HOT",
+    "MASK64",
+    "G1",
+    "G2",
+    "mix64",
+    "stream_key",
+    "readout_key",
+    "pixel_bits",
+    "uniform",
+    "normal",
+    "log_positive",
+    "erfinv",
+    "pixel_normals",
+    "pixel_uniforms",
+]
+
+MASK64 = (1 << 64) - 1
+G1 = 0x9E3779B97F4A7C15  # 2**64 / golden ratio
+G2 = 0xD1B54A32D192ED03  # an odd constant with good bit dispersion
+
+# Noise-source stream identifiers (part of the file format's reproducibility
+# contract: changing them changes every simulated stream).
+STREAM_INIT = 1
+STREAM_PAPER = 2
+STREAM_SHOT = 3
+STREAM_JITTER = 4
+STREAM_FPN_THRESHOLD = 16
+STREAM_FPN_GAIN = 17
+STREAM_FPN_DARK = 18
+STREAM_FPN_HOT = 19
+
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_G1 = np.uint64(G1)
+_G2 = np.uint64(G2)
+_S30 = np.uint64(30)
+_S27 = np.uint64(27)
+_S31 = np.uint64(31)
+_S12 = np.uint64(12)
+_S52 = np.uint64(52)
+_TWO_M52 = 2.0**-52
+_MANT = np.uint64(0x000FFFFFFFFFFFFF)
+_ONE_BITS = np.uint64(0x3FF0000000000000)
+_SQRT2 = 1.4142135623730951
+_LN2 = 0.6931471805599453
+
+# erfinv(x) = x * g(w), w = -log(1 - x^2); Horner coefficients, highest degree
+# first, in the normalised variable s in [-1, 1] (see tools/fit_erfinv.py).
+_G_LOW = (1.8592610894098583e-07, -8.464437773624513e-07, -9.363845561391755e-08,
+          6.660972032607879e-06, -1.180768858306798e-05, -1.456725162160255e-05,
+          9.367107446406456e-05, -0.00011713384656548219, -0.0002644927611571621,
+          0.0012325579311627515, -0.0012716740594109798, -0.004137325568006293,
+          0.017808360142313722, -0.022604446683662592, -0.058922567044518814,
+          0.7504943200646456, 1.6536545626827615)  # w in [0, 6.25]
+_G_HIGH = (2.9963650963221848e-05, 8.234976745370404e-06, -0.0002155782752685568,
+           0.00017656762607483667, 0.0002759542388929564, -0.0005026178101840458,
+           0.00039129566240308556, -0.00040835988661481803, 0.0005064835089908585,
+           -0.0005181167009006673, 0.0006429508301859733, -0.0011284280871460062,
+           0.002115982102576942, -0.0033354996800940805, 0.0019171344351457086,
+           1.8506822426766056, 4.175255197909927)  # sqrt(w) in [2.5, 6.1644...]
+_W_SPLIT = 6.25
+_HIGH_A = 2.5
+_HIGH_B = 6.164414002968976
+
+
+@intrinsic
+def _f64_bits(typingctx, x):
+    """Reinterpret a float64 as its uint64 bit pattern (no conversion)."""
+    if x != types.float64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], llvm_ir.IntType(64))
+
+    return types.uint64(types.float64), codegen
+
+
+@intrinsic
+def _bits_f64(typingctx, x):
+    """Reinterpret a uint64 bit pattern as a float64."""
+    if x != types.uint64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], llvm_ir.DoubleType())
+
+    return types.float64(types.uint64), codegen
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def mix64(z):
+    """SplitMix64 finaliser (Mix13): a bijective 64-bit avalanche hash."""
+    z = np.uint64(z)
+    z = (z ^ (z >> _S30)) * _M1
+    z = (z ^ (z >> _S27)) * _M2
+    return z ^ (z >> _S31)
+
+
+def stream_key(seed: int, stream: int) -> np.uint64:
+    """64-bit key of one noise source for one seed (Python-level helper)."""
+    seed = int(seed) & MASK64
+    k = int(mix64(np.uint64((seed + G1) & MASK64)))
+    return mix64(np.uint64((k + (int(stream) * G2)) & MASK64))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def readout_key(key, n):
+    """Per-readout key: ``mix64(key + n·G1)`` for readout index ``n >= 0``."""
+    return mix64(np.uint64(key) + np.uint64(n) * _G1)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def pixel_bits(rkey, pixel):
+    """64 random bits for one pixel under a readout key."""
+    return mix64(np.uint64(rkey) ^ (np.uint64(pixel) * _G2))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def uniform(bits):
+    """Uniform deviate in (0, 1) from the top 52 bits: ``(k + ½)·2**-52``.
+
+    The grid is symmetric about ½ and ``1 − u`` is exact, which keeps the
+    normal deviates symmetric in the far tails.
+    """
+    return (np.float64(bits >> _S12) + 0.5) * _TWO_M52
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def log_positive(y):
+    """Natural log of a positive, normal float64 (absolute error < 1e-13).
+
+    ``y = 2**e · m`` with ``m`` folded into [√½, √2); ``log m = 2 atanh(s)``,
+    ``s = (m − 1)/(m + 1)``, summed to s**15 (|s| < 0.172).
+    """
+    bits = _f64_bits(y)
+    e = np.float64(np.int64(bits >> _S52) - 1023)
+    m = _bits_f64((bits & _MANT) | _ONE_BITS)
+    if m > _SQRT2:
+        m = m * 0.5
+        e = e + 1.0
+    s = (m - 1.0) / (m + 1.0)
+    s2 = s * s
+    p = 1.0 / 15.0
+    p = p * s2 + 1.0 / 13.0
+    p = p * s2 + 1.0 / 11.0
+    p = p * s2 + 1.0 / 9.0
+    p = p * s2 + 1.0 / 7.0
+    p = p * s2 + 1.0 / 5.0
+    p = p * s2 + 1.0 / 3.0
+    p = p * s2 + 1.0
+    return e * _LN2 + 2.0 * s * p
+
+
+# Range normalisation as multiply-adds (divisions by constants do not vectorise
+# cheaply without fast-math); the fit used the same affine maps.
+_LOW_SCALE = 2.0 / _W_SPLIT
+_HIGH_SCALE = 2.0 / (_HIGH_B - _HIGH_A)
+_HIGH_SHIFT = (_HIGH_A + _HIGH_B) / (_HIGH_B - _HIGH_A)
+_G_TABLE = np.array([_G_LOW, _G_HIGH], dtype=np.float64)
+_N_COEFF = len(_G_LOW)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _erfinv_core(x, one_minus_x2):
+    """erfinv(x) given x and 1 − x² (the caller computes the latter accurately).
+
+    Both ranges share one Horner loop with per-lane coefficient selection, so
+    the loop vectorises (no data-dependent branch).
+    """
+    w = -log_positive(one_minus_x2)
+    high = w >= _W_SPLIT
+    r = np.sqrt(w)
+    s_low = w * _LOW_SCALE - 1.0
+    s_high = r * _HIGH_SCALE - _HIGH_SHIFT
+    s = s_high if high else s_low
+    g = 0.0
+    for i in range(_N_COEFF):
+        g = g * s + (_G_TABLE[1, i] if high else _G_TABLE[0, i])
+    return x * g
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def erfinv(x):
+    """Inverse error function for x in (−1, 1) (relative error < 1.3e-9)."""
+    return _erfinv_core(x, (1.0 - x) * (1.0 + x))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def normal(bits):
+    """Standard normal deviate from 64 random bits (inversion, see module doc)."""
+    u = uniform(bits)
+    # 1 - x^2 = 4u(1 - u): both factors exact, no cancellation near the tails.
+    return _SQRT2 * _erfinv_core(2.0 * u - 1.0, 4.0 * u * (1.0 - u))
+
+
+@njit(cache=True, error_model="numpy")
+def pixel_normals(key, n_pixels):
+    """Standard normal deviates for pixels 0..n-1 of a per-pixel stream (readout 0)."""
+    rk = readout_key(key, 0)
+    out = np.empty(n_pixels, np.float64)
+    for p in range(n_pixels):
+        out[p] = normal(pixel_bits(rk, p))
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def pixel_uniforms(key, n_pixels):
+    """Uniform deviates in (0, 1) for pixels 0..n-1 of a per-pixel stream (readout 0)."""
+    rk = readout_key(key, 0)
+    out = np.empty(n_pixels, np.float64)
+    for p in range(n_pixels):
+        out[p] = uniform(pixel_bits(rk, p))
+    return out
