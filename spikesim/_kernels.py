@@ -179,52 +179,66 @@ def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, 
 @njit(inline="always", **_opts)
 def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
                   paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter):
-    """One readout of the general model for a block; returns the spike mask."""
-    use_paper = paper_sg2 > 0.0 or paper_sp2 > 0.0
-    use_shot = electrons[0] >= 0.0
-    rk_paper = readout_key(key_paper, n) if use_paper else np.uint64(0)
-    rk_shot = readout_key(key_shot, n) if use_shot else np.uint64(0)
-    rk_jit = readout_key(key_jitter, n) if jitter > 0.0 else np.uint64(0)
-    pix0 = y * width + x0
+    """One readout of the general model for a block; returns the spike mask.
+
+    ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
+    with the charge.  Each stage is a separate loop over the 64 lanes so the
+    stages without data-dependent control flow vectorise; padding lanes
+    (x ≥ width) have zero gain and offset, so they never fire whatever noise
+    is drawn for them.
+    """
+    pix0 = np.uint64(y * width + x0)
+    if paper_sg2 > 0.0 or paper_sp2 > 0.0:
+        rk = readout_key(key_paper, n)
+        if paper_sp2 > 0.0:
+            for lane in range(BLOCK):
+                level = ibuf[lane]
+                sd = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * level) * (1.0 / 255.0)
+                ibuf[lane] = max(level + sd * normal(pixel_bits(rk, pix0 + np.uint64(lane))), 0.0)
+        else:
+            sd = np.sqrt(paper_sg2) * (1.0 / 255.0)
+            for lane in range(BLOCK):
+                level = ibuf[lane] + sd * normal(pixel_bits(rk, pix0 + np.uint64(lane)))
+                ibuf[lane] = max(level, 0.0)
+    for lane in range(BLOCK):
+        ibuf[lane] = gain[lane] * ibuf[lane] + offset[lane]
+    if electrons[0] >= 0.0:
+        rk = readout_key(key_shot, n)
+        for lane in range(BLOCK):
+            e = electrons[lane]
+            ibuf[lane] = poisson(ibuf[lane] * e, pixel_bits(rk, pix0 + np.uint64(lane))) / e
     m = np.uint64(0)
     for lane in range(BLOCK):
-        if x0 + lane >= width:
-            break
-        pix = pix0 + lane
-        level = ibuf[lane]
-        if use_paper:
-            sd = math.sqrt(paper_sg2 + paper_sp2 * 255.0 * level) / 255.0
-            level = max(level + sd * normal(pixel_bits(rk_paper, pix)), 0.0)
-        q = gain[lane] * level + offset[lane]
-        if use_shot:
-            e = electrons[lane]
-            q = poisson(q * e, pixel_bits(rk_shot, pix)) / e
-        qw, qf = _to_fixed(q)
+        qw, qf = _to_fixed(ibuf[lane])
         s = frac[lane] + qf
         w = whole[lane] + qw + (1 if s < frac[lane] else 0)
-        if w >= 1:
-            m |= _U1 << np.uint64(lane)
-            if reset == RESET_SUBTRACT:
-                w -= 1
-            else:
-                w = 0
-                if reset == RESET_ZERO:
-                    s = np.uint64(0)
-            if jitter > 0.0:
-                # next threshold θ(1 + ε)  ⇔  charge shifted by −ε
-                eps = jitter * normal(pixel_bits(rk_jit, pix))
+        fire = w >= 1
+        if reset == RESET_SUBTRACT:
+            w = w - 1 if fire else w
+        else:
+            w = 0 if fire else w
+            if reset == RESET_ZERO:
+                s = np.uint64(0) if fire else s
+        m |= np.uint64(fire) << np.uint64(lane)
+        frac[lane] = s
+        whole[lane] = w
+    if jitter > 0.0 and m != 0:
+        # the next cycle's threshold is θ(1 + ε)  ⇔  the charge shifts by −ε
+        rk = readout_key(key_jitter, n)
+        for lane in range(BLOCK):
+            if (m >> np.uint64(lane)) & _U1:
+                eps = jitter * normal(pixel_bits(rk, pix0 + np.uint64(lane)))
                 ef = np.uint64(min(abs(eps), 0.5) * TWO64)
+                s = frac[lane]
                 if eps > 0.0:
                     t = s - ef
                     if t > s:
-                        w -= 1
+                        whole[lane] -= 1
                 else:
                     t = s + ef
                     if t < s:
-                        w += 1
-                s = t
-        frac[lane] = s
-        whole[lane] = w
+                        whole[lane] += 1
+                frac[lane] = t
     return m
 
 

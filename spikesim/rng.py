@@ -142,7 +142,7 @@ def stream_key(seed: int, stream: int) -> np.uint64:
     """64-bit key of one noise source for one seed (Python-level helper)."""
     seed = int(seed) & MASK64
     k = int(mix64(np.uint64((seed + G1) & MASK64)))
-    return mix64(np.uint64((k + (int(stream) * G2)) & MASK64))
+    return np.uint64(int(mix64(np.uint64((k + (int(stream) * G2)) & MASK64))))
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -136,7 +136,8 @@ class SimulationRun:
                  clean_twin: bool = False, gt_readouts: Sequence[int] | None = None,
                  chunk_readouts: int | None = None, progress: bool = False):
         if not isinstance(sensor, Sensor):
-            raise SpikeSimTypeError(f"sensor must be a spikesim.Sensor, got {type(sensor).__name__}")
+            raise SpikeSimTypeError(
+                f"sensor must be a spikesim.Sensor, got {type(sensor).__name__}")
         for attr in ("radiance", "key_times", "height", "width", "describe"):
             if not hasattr(scene, attr):
                 raise SpikeSimTypeError(
@@ -255,7 +256,6 @@ class SimulationRun:
                     n1 = n0 + max(1, (n1 - n0) // 2)
                     times = np.asarray(self.scene.key_times(n0 / clock, n1 / clock), np.float64)
                     tau = key_readout_times(times, clock)
-                _check_brackets(tau, n0, n1)
                 frames = np.zeros((len(times), h, wp), np.float32)
                 new_cache = {}
                 for i, t in enumerate(times.tolist()):
@@ -290,19 +290,6 @@ class SimulationRun:
 
 def _padded_width(width: int) -> int:
     return _kernels.BLOCK * math.ceil(width / _kernels.BLOCK)
-
-
-def _check_brackets(tau: np.ndarray, n0: int, n1: int) -> None:
-    """A scene must return a key at or before every chunk start after the first.
-
-    (Before its first key the radiance is held; that is only well defined
-    globally, so a later chunk may not start before the keys it was given.)
-    """
-    if len(tau) == 1:
-        return
-    if tau[0] > n0 > 0:
-        raise bad_value("scene.key_times", f"first key at readout {tau[0]:.6g}",
-                        f"a key time at or before readout {n0} (the chunk start)")
 
 
 def simulate_chunks(scene, sensor: Sensor, n_readouts: int, seed: int = 0,

@@ -1,0 +1,68 @@
+"""Same bits whatever the chunk size or the number of threads."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from core_helpers import Keyframes
+
+import spikesim as ss
+
+NOISES = [
+    None,
+    ss.noise.PaperNoise(sigma_g=6.0, sigma_p=2.0),
+    ss.noise.PhysicalNoise(hot_pixel_fraction=0.01),
+]
+
+
+def _scene():
+    rng = np.random.default_rng(0)
+    imgs = [rng.random((13, 70, 3)).astype(np.float32) * s for s in (0.5, 2.0, 0.1)]
+    return Keyframes(np.array([0.0, 0.0217, 0.05]), imgs)
+
+
+@pytest.mark.parametrize("noise", NOISES, ids=["ideal", "paper", "physical"])
+def test_chunk_sizes_give_same_bits(noise):
+    sensor = ss.Sensor(height=13, width=70, clock_hz=1000.0, noise=noise)
+    scene = _scene()
+    whole = ss.simulate(scene, sensor, 64, seed=4, clean_twin=True, chunk_readouts=64)
+    for chunk in (1, 7):
+        part = ss.simulate(scene, sensor, 64, seed=4, clean_twin=True, chunk_readouts=chunk)
+        np.testing.assert_array_equal(part.packed, whole.packed)
+        np.testing.assert_array_equal(part.clean_packed, whole.clean_packed)
+
+
+SCRIPT = textwrap.dedent(
+    """
+    import sys, numpy as np, numba, spikesim as ss
+    from spikesim.scenes.keyframes import Keyframes
+    rng = np.random.default_rng(0)
+    imgs = [rng.random((40, 130, 3)).astype(np.float32) * s for s in (0.5, 2.0)]
+    scene = Keyframes(np.array([0.0, 0.03]), imgs)
+    noise = ss.noise.PaperNoise(5.0, 1.0) if sys.argv[1] == "paper" else ss.noise.PhysicalNoise()
+    sensor = ss.Sensor(height=40, width=130, clock_hz=1000.0, noise=noise)
+    st = ss.simulate(scene, sensor, 50, seed=1, clean_twin=True)
+    print(numba.get_num_threads(), st.packed.sum(dtype=np.int64),
+          st.clean_packed.sum(dtype=np.int64))
+    np.save(sys.argv[2], st.packed)
+    """
+)
+
+
+@pytest.mark.parametrize("mode", ["paper", "physical"])
+def test_thread_count_gives_same_bits(tmp_path, mode):
+    outs = []
+    for threads in (1, 2):
+        env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+        path = tmp_path / f"{threads}.npy"
+        res = subprocess.run([sys.executable, "-c", SCRIPT, mode, str(path)], env=env,
+                             capture_output=True, text=True, timeout=300)
+        assert res.returncode == 0, res.stderr
+        assert res.stdout.split()[0] == str(threads)
+        outs.append(np.load(path))
+    np.testing.assert_array_equal(outs[0], outs[1])

@@ -1,0 +1,165 @@
+"""Noise statistics against theory (fixed seeds, stated confidence).
+
+Each test measures a statistic over M independent pixels; tolerances are
+about 4 standard errors of that statistic (two-sided ~6e-5 false alarm
+if the model were right and the seed random; the seeds are fixed).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from core_helpers import counts, flat_rows
+from scipy import stats
+
+import spikesim as ss
+from spikesim import rng
+from spikesim._kernels import poisson
+
+N = 4000  # readouts
+W = 1024  # pixels per intensity
+
+
+def test_normal_generator_matches_standard_normal():
+    z = rng.pixel_normals(rng.stream_key(1, rng.STREAM_PAPER), 200_000)
+    assert abs(z.mean()) < 4 / np.sqrt(z.size)
+    assert abs(z.var() - 1) < 4 * np.sqrt(2 / z.size)
+    assert stats.kstest(z, "norm").pvalue > 1e-3
+    # the far tails exist and are symmetric
+    big = rng.pixel_normals(rng.stream_key(2, rng.STREAM_PAPER), 2_000_000)
+    assert np.sum(big > 4) > 50 and np.sum(big < -4) > 50
+
+
+def test_mix64_matches_splitmix64_reference_value():
+    # first output of SplitMix64 seeded with 0 (Steele et al. 2014)
+    assert int(rng.mix64(np.uint64(rng.G1))) == 0xE220A8397B1DCDAF
+
+
+@pytest.mark.parametrize("lam", [0.3, 4.0, 9.99, 10.0, 37.5, 800.0])
+def test_poisson_sampler(lam):
+    key = np.uint64(rng.readout_key(rng.stream_key(5, rng.STREAM_SHOT), 0))
+    k = np.array([poisson(lam, np.uint64(rng.pixel_bits(key, p))) for p in range(60_000)])
+    assert abs(k.mean() - lam) < 4 * np.sqrt(lam / k.size)
+    assert abs(k.var() / lam - 1) < 4 * np.sqrt(2 / k.size) + 4 / np.sqrt(lam * k.size)
+    if lam < 50:  # chi-square goodness of fit on the pmf
+        top = int(lam + 6 * np.sqrt(lam) + 5)
+        observed = np.bincount(k.astype(int), minlength=top + 1)[: top + 1]
+        expected = stats.poisson.pmf(np.arange(top + 1), lam) * k.size
+        keep = expected > 5
+        chi2 = np.sum((observed[keep] - expected[keep]) ** 2 / expected[keep])
+        assert stats.chi2.sf(chi2, keep.sum() - 1) > 1e-3
+
+
+@pytest.mark.parametrize("sigma_g,sigma_p", [(10.0, 0.0), (15.0, 0.0), (3.0, 4.0)])
+def test_paper_mode_mean_and_variance_follow_eq5(sigma_g, sigma_p):
+    """count = floor(A0 + S), S = Σ r·max(ỹ_n, 0)/255 with ỹ ~ N(y, σ_g² + σ_p²·y):
+    E = N·r·m/255 and Var = N·r²·v/255² + 1/6, where m, v are the moments of the
+    Gaussian rectified at 0 (negative light clipped) and 1/6 is the uniform-A0
+    quantization term."""
+    levels = [0.25, 0.5, 0.9]
+    noise = ss.noise.PaperNoise(sigma_g=sigma_g, sigma_p=sigma_p)
+    sensor = ss.Sensor(height=len(levels), width=W, cfa=None, noise=noise)
+    c = counts(ss.scenes.Static(flat_rows(levels, W)), sensor, N, seed=21)
+    for row, level in enumerate(levels):
+        y = 255.0 * float(np.float32(level))
+        sd = float(np.sqrt(noise.variance_dn(y)))
+        a = y / sd
+        m1 = y * stats.norm.cdf(a) + sd * stats.norm.pdf(a)
+        m2 = (y * y + sd * sd) * stats.norm.cdf(a) + y * sd * stats.norm.pdf(a)
+        var_theory = N * 0.36 * (m2 - m1 * m1) / 255.0**2 + 1 / 6
+        mean_theory = N * 0.6 * m1 / 255.0
+        m, v = c[row].mean(), c[row].var(ddof=1)
+        assert abs(m - mean_theory) < 4 * np.sqrt(var_theory / W)
+        assert abs(v / var_theory - 1) < 4 * np.sqrt(2 / (W - 1))
+
+
+def test_paper_noise_raises_variance_over_clean_twin():
+    noise = ss.noise.PaperNoise(sigma_g=10.0)
+    sensor = ss.Sensor(height=1, width=W, cfa=None, noise=noise)
+    scene = ss.scenes.Static(flat_rows([0.5], W))
+    noisy = counts(scene, sensor, 2000, seed=2)
+    clean = counts(scene, sensor, 2000, seed=2, clean=True)
+    # theory: clean 1/6 + rounding of a constant sum (< 0.25); noisy 1.27 (eq. 5)
+    assert clean.var() < 0.3 and noisy.var() > 1.0
+
+
+def test_shot_noise_variance():
+    """Poisson electrons: Var(q_n) = q/E thresholds², so Var(count) = N·q/E + 1/6."""
+    e = 50.0
+    noise = ss.noise.PhysicalNoise(electrons_per_threshold=e, dark_current_rel=0.0,
+                                   threshold_mismatch=0.0, prnu=0.0,
+                                   temporal_threshold_noise=0.0, hot_pixel_fraction=0.0)
+    sensor = ss.Sensor(height=1, width=W, cfa=None, noise=noise)
+    c = counts(ss.scenes.Static(flat_rows([0.5], W)), sensor, N, seed=4)
+    q = 0.6 * 0.5
+    var_theory = N * q / e + 1 / 6
+    assert abs(c.mean() - N * q) < 4 * np.sqrt(var_theory / W)
+    assert abs(c.var(ddof=1) / var_theory - 1) < 4 * np.sqrt(2 / (W - 1))
+
+
+def test_threshold_jitter_variance():
+    """Renewal process with cycle lengths 1 + ε, ε ~ N(0, σ_t²): Var ≈ N·q·σ_t² + 1/6."""
+    sig = 0.05
+    noise = ss.noise.PhysicalNoise(shot_noise=False, dark_current_rel=0.0,
+                                   threshold_mismatch=0.0, prnu=0.0,
+                                   temporal_threshold_noise=sig, hot_pixel_fraction=0.0)
+    sensor = ss.Sensor(height=1, width=W, cfa=None, noise=noise)
+    c = counts(ss.scenes.Static(flat_rows([0.5], W)), sensor, N, seed=6)
+    q = 0.3
+    var_theory = N * q * sig**2 + 1 / 6
+    assert abs(c.mean() - N * q) < 4 * np.sqrt(var_theory / W) + 0.5
+    assert abs(c.var(ddof=1) / var_theory - 1) < 4 * np.sqrt(2 / (W - 1)) + 0.05
+
+
+def _only(**kw):
+    base = dict(shot_noise=False, dark_current_rel=0.0, dark_current_spread=0.0,
+                threshold_mismatch=0.0, prnu=0.0, temporal_threshold_noise=0.0,
+                hot_pixel_fraction=0.0)
+    base.update(kw)
+    return ss.noise.PhysicalNoise(**base)
+
+
+def test_dark_count_rate_and_spread():
+    """In the dark each pixel fires at r·d_i, d_i log-normal with mean 0.005, CV 0.39."""
+    noise = _only(dark_current_rel=0.005, dark_current_spread=0.39)
+    sensor = ss.Sensor(height=16, width=256, cfa=None, noise=noise)
+    n = 40_000
+    c = counts(ss.scenes.Static(np.zeros((16, 256))), sensor, n, seed=1, chunk=8192)
+    rate = c / n
+    m = rate.size
+    assert abs(rate.mean() / (0.6 * 0.005) - 1) < 4 * 0.39 / np.sqrt(m) + 1 / (n * 0.003)
+    cv = rate.std() / rate.mean()
+    assert abs(cv - 0.39) < 4 * 0.39 / np.sqrt(2 * m) + 0.02
+
+
+@pytest.mark.parametrize("name", ["threshold_mismatch", "prnu"])
+def test_fixed_pattern_spread(name):
+    """Flat field: per-pixel rates spread as r·I·g_i/t_i; compare the CV with the
+    exact moments of 1/(1 + σz) (threshold) or (1 + σz) (gain)."""
+    sigma = 0.045 if name == "threshold_mismatch" else 0.058
+    sensor = ss.Sensor(height=8, width=512, cfa=None, noise=_only(**{name: sigma}))
+    n = 20_000
+    c = counts(ss.scenes.Static(np.full((8, 512), 0.5)), sensor, n, seed=0, chunk=8192)
+    rate = c / n
+    z, wts = np.polynomial.hermite_e.hermegauss(60)
+    wts = wts / wts.sum()
+    f = 1 / (1 + sigma * z) if name == "threshold_mismatch" else 1 + sigma * z
+    mean = np.sum(wts * f)
+    cv_theory = np.sqrt(np.sum(wts * f**2) - mean**2) / mean
+    m = rate.size
+    assert abs(rate.mean() / (0.3 * mean) - 1) < 4 * cv_theory / np.sqrt(m) + 1e-3
+    assert abs(rate.std() / rate.mean() / cv_theory - 1) < 4 / np.sqrt(2 * m) + 0.02
+
+
+def test_hot_pixel_fraction():
+    noise = _only(hot_pixel_fraction=0.02, hot_pixel_dark_rel=0.3)
+    sensor = ss.Sensor(height=64, width=256, cfa=None, noise=noise)
+    c = counts(ss.scenes.Static(np.zeros((64, 256))), sensor, 200, seed=0)
+    hot = c > 0
+    m = hot.size
+    assert abs(hot.mean() - 0.02) < 4 * np.sqrt(0.02 * 0.98 / m)
+    # a hot pixel fires at r·0.3 = 0.18 per readout
+    assert abs(c[hot].mean() / 200 - 0.18) < 0.01
+    # the pattern belongs to the chip: same fpn_seed, same pixels, any simulation seed
+    c2 = counts(ss.scenes.Static(np.zeros((64, 256))), sensor, 200, seed=99)
+    np.testing.assert_array_equal(c2 > 0, hot)

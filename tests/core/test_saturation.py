@@ -1,0 +1,70 @@
+"""Saturating light (r·I ≥ 1): one spike per readout at most, bounded or growing state."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from core_helpers import Keyframes, initial_fraction
+
+import spikesim as ss
+
+CLOCK = 1000.0
+
+
+def _bright_then_dark(level, n_bright, width=16):
+    """Radiance `level` until readout n_bright, dark from readout n_bright + 1 on."""
+    bright = np.full((1, width), level, np.float32)
+    dark = np.zeros((1, width), np.float32)
+    return Keyframes(np.array([n_bright, n_bright + 1]) / CLOCK, [bright, dark])
+
+
+@pytest.mark.parametrize("reset", ["modulo", "zero", "subtract"])
+@pytest.mark.parametrize("level", [1.7, 2.0, 1e3, 1e6])
+def test_every_readout_fires_under_saturation(reset, level):
+    sensor = ss.Sensor(height=1, width=16, cfa=None, reset=reset, clock_hz=CLOCK)
+    st = ss.simulate(ss.scenes.Static(np.full((1, 16), level, np.float32)), sensor, 300)
+    assert st.unpack().all()
+
+
+@pytest.mark.parametrize("reset", ["modulo", "zero"])
+@pytest.mark.parametrize("level", [2.0, 1e6])
+def test_bounded_modes_stop_when_light_stops(reset, level):
+    """The accumulator stays below θ: after the light goes out nothing more fires."""
+    sensor = ss.Sensor(height=1, width=16, cfa=None, reset=reset, clock_hz=CLOCK)
+    st = ss.simulate(_bright_then_dark(level, 100), sensor, 400, seed=2)
+    spikes = st.unpack()[:, 0, :]
+    assert spikes[:100].all()
+    assert not spikes[102:].any()
+
+
+def test_subtract_mode_backlog_grows_as_documented():
+    """Subtract mode: after N saturated readouts the accumulator holds A0 + N·(q − 1)
+    thresholds, paid back one spike per readout once the light is gone."""
+    level, n_bright, n = 10.0, 100, 900
+    sensor = ss.Sensor(height=1, width=16, cfa=None, reset="subtract", clock_hz=CLOCK)
+    st = ss.simulate(_bright_then_dark(level, n_bright), sensor, n, seed=3)
+    spikes = st.unpack()[:, 0, :]
+    # charges as the sensor integrates them (float64), then exact rational bookkeeping
+    i_bright = float(np.float32(level))
+    ramp = Fraction(0.6 * (i_bright + (0.0 - i_bright) * 0.5))  # the readout [N, N+1)
+    charges = [Fraction(0.6 * i_bright)] * n_bright + [ramp]
+    charges += [Fraction(0)] * (n - n_bright - 1)
+    a0 = initial_fraction(sensor, 3)[0]
+    for x in range(16):
+        acc = Fraction(int(a0[x]), 2**64)
+        want = []
+        for n_i, q in enumerate(charges):
+            acc += q
+            fire = acc >= 1
+            want.append(int(fire))
+            if fire:
+                acc -= 1
+            if n_i == n_bright - 1:
+                # documented growth: A0 + N (q - 1)
+                assert acc == Fraction(int(a0[x]), 2**64) + n_bright * (charges[0] - 1)
+        np.testing.assert_array_equal(spikes[:, x], want)
+    # the backlog (~500 readouts) keeps firing long after the light went out
+    assert spikes[n_bright + 1 : n_bright + 400].all()
+    assert not spikes[-100:].any()
