@@ -63,14 +63,6 @@ _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
 
 @njit(inline="always", **_opts)
-def _store_mask(out, t, y, byte0, nbytes_row, m):
-    for j in range(8):
-        b = byte0 + j
-        if b < nbytes_row:
-            out[t, y, b] = np.uint8((m >> (np.uint64(j) * _U8)) & _UFF)
-
-
-@njit(inline="always", **_opts)
 def _to_fixed(q):
     """Split a non-negative charge (thresholds) into (whole int64, fraction uint64)."""
     w = np.floor(q)
@@ -147,33 +139,53 @@ def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, 
 
 
 @njit(inline="always", **_opts)
-def _fast_static(n0, n1, qconst, frac, out, t_off, y, byte0, nbytes_row):
-    """Modulo reset, constant charge < 1 θ: integer add and carry only."""
+def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk):
+    """Modulo reset, constant charge < 1 θ: integer add and carry only.
+
+    Works on local copies of the state so the compiler can keep the lanes in
+    vector registers (no aliasing with the output).
+    """
     qf = np.empty(BLOCK, np.uint64)
+    f = np.empty(BLOCK, np.uint64)
     for lane in range(BLOCK):
         qf[lane] = np.uint64(qconst[lane] * TWO64)
+        f[lane] = frac[lane]
     for n in range(n0, n1):
         m = np.uint64(0)
         for lane in range(BLOCK):
-            s = frac[lane] + qf[lane]
-            m |= np.uint64(s < frac[lane]) << np.uint64(lane)
-            frac[lane] = s
-        _store_mask(out, n - t_off, y, byte0, nbytes_row, m)
+            s = f[lane] + qf[lane]
+            m |= np.uint64(s < f[lane]) << np.uint64(lane)
+            f[lane] = s
+        out[n - t_off, y, blk] = m
+    for lane in range(BLOCK):
+        frac[lane] = f[lane]
 
 
 @njit(inline="always", **_opts)
-def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, byte0,
-                 nbytes_row):
+def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk):
     """Modulo reset, no per-readout noise, charge < 1 θ, linear radiance."""
+    f = np.empty(BLOCK, np.uint64)
+    a = np.empty(BLOCK, np.float64)
+    d = np.empty(BLOCK, np.float64)
+    g = np.empty(BLOCK, np.float64)
+    o = np.empty(BLOCK, np.float64)
+    for lane in range(BLOCK):
+        f[lane] = frac[lane]
+        a[lane] = ia[lane]
+        d[lane] = di[lane]
+        g[lane] = gain[lane]
+        o[lane] = offset[lane]
     for n in range(n0, n1):
         phi = (np.float64(n) + 0.5 - t_a) * inv_span
         m = np.uint64(0)
         for lane in range(BLOCK):
-            q = gain[lane] * (ia[lane] + di[lane] * phi) + offset[lane]
-            s = frac[lane] + np.uint64(q * TWO64)
-            m |= np.uint64(s < frac[lane]) << np.uint64(lane)
-            frac[lane] = s
-        _store_mask(out, n - t_off, y, byte0, nbytes_row, m)
+            q = g[lane] * (a[lane] + d[lane] * phi) + o[lane]
+            s = f[lane] + np.uint64(q * TWO64)
+            m |= np.uint64(s < f[lane]) << np.uint64(lane)
+            f[lane] = s
+        out[n - t_off, y, blk] = m
+    for lane in range(BLOCK):
+        frac[lane] = f[lane]
 
 
 @njit(inline="always", **_opts)
@@ -243,7 +255,7 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
 
 
 @njit(**_opts)
-def _block_runs(frames, y, x0, width, nbytes_row, t_off,
+def _block_runs(frames, y, x0, width, t_off,
                 run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0, run_p1,
                 piece_a, piece_b, piece_len, piece_phi,
                 gain, offset, electrons, frac, whole, out, reset, fast_ok,
@@ -252,7 +264,7 @@ def _block_runs(frames, y, x0, width, nbytes_row, t_off,
     ia = np.empty(BLOCK, np.float64)
     di = np.empty(BLOCK, np.float64)
     ibuf = np.empty(BLOCK, np.float64)
-    byte0 = x0 // 8
+    blk = x0 // BLOCK
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]
         n1 = run_stop[r]
@@ -262,7 +274,7 @@ def _block_runs(frames, y, x0, width, nbytes_row, t_off,
             m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                               reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
                               key_jitter)
-            _store_mask(out, n0 - t_off, y, byte0, nbytes_row, m)
+            out[n0 - t_off, y, blk] = m
             continue
         t_a = run_ta[r]
         inv = run_inv[r]
@@ -282,10 +294,9 @@ def _block_runs(frames, y, x0, width, nbytes_row, t_off,
         if use_fast and static:
             for lane in range(BLOCK):
                 ibuf[lane] = gain[lane] * (ia[lane] + di[lane] * 0.0) + offset[lane]
-            _fast_static(n0, n1, ibuf, frac, out, t_off, y, byte0, nbytes_row)
+            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk)
         elif use_fast:
-            _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, byte0,
-                         nbytes_row)
+            _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk)
         else:
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
@@ -294,7 +305,7 @@ def _block_runs(frames, y, x0, width, nbytes_row, t_off,
                 m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                                   reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
                                   key_jitter)
-                _store_mask(out, n - t_off, y, byte0, nbytes_row, m)
+                out[n - t_off, y, blk] = m
 
 
 @njit(parallel=True, **_opts)
@@ -311,21 +322,22 @@ def simulate_chunk(frames, width, t_off,
     ``gain``, ``offset`` (H, Wp) float64 and ``electrons`` (H, Wp) float64
     (all −1 when shot noise is off) are the per-pixel charge constants;
     ``frac`` (H, Wp) uint64 and ``whole`` (H, Wp) int64 the accumulator,
-    updated in place.  ``out`` (T, H, ceil(W/8)) uint8 receives packed bits
-    for readout ``n`` at ``out[n − t_off]``.  When ``clean`` is true the
+    updated in place.  ``out`` (T, H, Wp/64) uint64 receives the spikes of
+    readout ``n`` at ``out[n − t_off]``: bit k of word j is pixel 64·j + k,
+    which on a little-endian machine is exactly the little-bit-order packed
+    byte layout (viewed as uint8, rows padded to Wp/8 bytes).  When ``clean`` is true the
     noise-free twin is advanced in the same pass with its own arrays.
     """
     height = frames.shape[1]
     padded = frames.shape[2]
     nblk = padded // BLOCK
-    nbytes_row = out.shape[2]
     for job in prange(height * nblk):
         y = job // nblk
         x0 = (job % nblk) * BLOCK
         sl = slice(x0, x0 + BLOCK)
         f = frac[y, sl].copy()
         w = whole[y, sl].copy()
-        _block_runs(frames, y, x0, width, nbytes_row, t_off,
+        _block_runs(frames, y, x0, width, t_off,
                     run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
                     run_p1, piece_a, piece_b, piece_len, piece_phi,
                     gain[y, sl], offset[y, sl], electrons[y, sl], f, w, out, reset, fast_ok,
@@ -335,7 +347,7 @@ def simulate_chunk(frames, width, t_off,
         if clean:
             cf = c_frac[y, sl].copy()
             cw = c_whole[y, sl].copy()
-            _block_runs(frames, y, x0, width, nbytes_row, t_off,
+            _block_runs(frames, y, x0, width, t_off,
                         run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
                         run_p1, piece_a, piece_b, piece_len, piece_phi,
                         c_gain[y, sl], c_offset[y, sl], c_electrons[y, sl], cf, cw, c_out,

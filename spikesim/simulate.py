@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+import sys
+
 from spikesim import _kernels, rng
 from spikesim._version import __version__
 from spikesim.bits import packed_width, unpack
@@ -31,6 +33,8 @@ __all__ = ["SpikeStream", "SpikeChunk", "SimulationRun", "simulate", "simulate_c
 CHUNK_OUTPUT_BYTES = 32 << 20
 #: Budget for the key frames held for one chunk (bytes).
 CHUNK_KEYFRAME_BYTES = 256 << 20
+if sys.byteorder != "little":  # pragma: no cover - every supported target is little-endian
+    raise ImportError("spikesim's kernel writes packed bits as little-endian 64-bit words")
 _RESET_CODES = {"modulo": _kernels.RESET_MODULO, "subtract": _kernels.RESET_SUBTRACT,
                 "zero": _kernels.RESET_ZERO}
 
@@ -236,7 +240,7 @@ class SimulationRun:
             c_frac = np.zeros((1, 64), np.uint64)
             c_whole = np.zeros((1, 64), np.int64)
             c_gain = c_offset = c_electrons = np.zeros((1, 64))
-        dummy_out = np.zeros((1, 1, 1), np.uint8)
+        dummy_out = np.zeros((1, 1, 1), np.uint64)
 
         cache: dict[float, np.ndarray] = {}
         bar = None
@@ -266,8 +270,9 @@ class SimulationRun:
                     new_cache[t] = frame
                 cache = {times[-1].item(): new_cache[times[-1].item()]}
                 sched = build_schedule(tau, n0, n1)
-                out = np.zeros((n1 - n0, h, nbytes), np.uint8)
-                c_out = np.zeros_like(out) if self.clean_twin else dummy_out
+                # rows padded to whole 64-bit words; the kernel writes every word
+                out = np.empty((n1 - n0, h, wp // 64), np.uint64)
+                c_out = np.empty_like(out) if self.clean_twin else dummy_out
                 _kernels.simulate_chunk(
                     frames, w, n0, *sched.kernel_args(), gain, offset, electrons, frac, whole,
                     out, reset, fast_ok, sg2, sp2, key(rng.STREAM_PAPER), key(rng.STREAM_SHOT),
@@ -279,7 +284,9 @@ class SimulationRun:
                 for i, g in enumerate(sel.tolist()):
                     gt[i] = validate_radiance(self.scene.radiance((g + 0.5) / clock),
                                               f"scene.radiance(t={(g + 0.5) / clock:.6g})")
-                yield SpikeChunk(n0, out, c_out if self.clean_twin else None, gt, sel.copy())
+                packed = out.view(np.uint8)[:, :, :nbytes]
+                c_packed = c_out.view(np.uint8)[:, :, :nbytes] if self.clean_twin else None
+                yield SpikeChunk(n0, packed, c_packed, gt, sel.copy())
                 if bar is not None:
                     bar.update(n1 - n0)
                 n0 = n1
