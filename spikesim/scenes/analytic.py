@@ -1,0 +1,152 @@
+"""Common machinery of procedural scenes: exact radiance at any time.
+
+A procedural scene is a closed-form function of time.  Images enter it as a
+*continuous* radiance field: the cubic B-spline that interpolates the texture
+samples (Unser, "Splines: a perfect fit for signal and image processing",
+IEEE Signal Processing Magazine 16(6), 1999), evaluated with
+:func:`scipy.ndimage.map_coordinates` (order 3, prefiltered once).  The spline
+passes exactly through the samples, so an integer-pixel displacement
+reproduces the shifted texture exactly, and sub-pixel positions are evaluated
+to floating-point precision of that continuous field.  Negative lobes of the
+spline are clipped at 0 (radiance is non-negative).
+
+Boundary handling: the texture is extended by mirror reflection into a
+seamless periodic plane (period 2H × 2W, SciPy mode ``"grid-wrap"`` on the
+mirrored tile), so any motion reveals mirrored copies of the picture, never
+black borders or a seam.
+
+Key frames: the simulator interpolates linearly between key frames, so each
+moving scene sets ``key_interval_s = max_px / speed`` where ``speed`` is its
+largest content speed in pixels per second; nothing then moves more than
+``max_px`` pixels between key frames.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from spikesim.errors import bad_value
+from spikesim.scenes.base import Scene
+
+__all__ = ["ProceduralScene", "SplineTexture", "check_positive", "check_time"]
+
+
+def check_positive(name: str, value: object, allow_none: bool = False) -> float | None:
+    """Validate a finite, strictly positive number (``None`` allowed if ``allow_none``)."""
+    if value is None and allow_none:
+        return None
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        v = math.nan
+    if isinstance(value, bool) or not math.isfinite(v) or v <= 0:
+        raise bad_value(name, value, "a finite number > 0")
+    return v
+
+
+def check_time(t: object) -> float:
+    """Validate a time in seconds (finite real)."""
+    try:
+        v = float(t)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise bad_value("t", t, "a finite time in seconds") from None
+    if not math.isfinite(v):
+        raise bad_value("t", t, "a finite time in seconds")
+    return v
+
+
+class SplineTexture:
+    """Continuous (cubic B-spline) radiance field over a mirrored periodic texture.
+
+    Coordinates are in texture pixels, pixel centres at integers, row 0 at the
+    top.  ``mirror=False`` keeps the texture as is with edge values repeated
+    (SciPy ``"nearest"``), used for small sprites that are masked anyway.
+    """
+
+    def __init__(self, image: np.ndarray, mirror: bool = True):
+        img = np.asarray(image, dtype=np.float64)
+        self.height, self.width = img.shape[:2]
+        self.mirror = mirror
+        if mirror:
+            img = np.concatenate([img, img[::-1]], axis=0)
+            img = np.concatenate([img, img[:, ::-1]], axis=1)
+        self._mode = "grid-wrap" if mirror else "nearest"
+        self._coef = [
+            ndimage.spline_filter(img[..., c], order=3, mode=self._mode) for c in range(3)
+        ]
+
+    def sample(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Radiance at (rows, cols) (same shape arrays) → shape + (3,) float32."""
+        coords = np.stack([rows, cols])
+        out = np.empty(rows.shape + (3,), np.float32)
+        for c in range(3):
+            out[..., c] = ndimage.map_coordinates(
+                self._coef[c], coords, order=3, mode=self._mode, prefilter=False
+            )
+        np.clip(out, 0.0, None, out=out)
+        return out
+
+
+class ProceduralScene(Scene):
+    """Base of procedural scenes: validated time, exposure, description, video rendering."""
+
+    #: registry name and motion, set by subclasses/factory
+    name: str = "procedural"
+    motion: str | None = None
+
+    def __init__(self, size: tuple[int, int], *, exposure: float = 1.0, max_px: float = 1.0):
+        from spikesim.scenes.photometry import check_exposure
+        from spikesim.scenes.sources import check_size
+
+        self.height, self.width = check_size(size)
+        self.exposure = check_exposure(exposure)
+        self.max_px = check_positive("max_px", max_px)
+        self.speed: float | None = None
+        self.key_interval_s = None
+
+    def _set_speed(self, speed: float | None) -> None:
+        """Largest content speed (px/s) → key interval ``max_px / speed`` seconds."""
+        self.speed = speed
+        self.key_interval_s = None if speed is None else self.max_px / speed
+
+    def _render(self, t: float) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def _options(self) -> dict:
+        return {}
+
+    def radiance(self, t: float) -> np.ndarray:
+        """Exact linear radiance (H, W, 3) float32 at time ``t`` seconds."""
+        out = self._render(check_time(t))
+        if self.exposure != 1.0:
+            out = out * np.float32(self.exposure)
+        return np.ascontiguousarray(out, dtype=np.float32)
+
+    def describe(self) -> dict:
+        return {
+            "type": "procedural",
+            "name": self.name,
+            "motion": self.motion,
+            "height": self.height,
+            "width": self.width,
+            "speed_px_s": self.speed,
+            "max_px": self.max_px,
+            "key_interval_s": self.key_interval_s,
+            "exposure": self.exposure,
+            **self._options(),
+        }
+
+    def as_video(self, fps: float, n_frames: int, **kwargs):
+        """Render this scene as a video of ``n_frames`` at ``fps`` (see ``video.as_video``)."""
+        from spikesim.scenes.video import as_video
+
+        return as_video(self, fps, n_frames, **kwargs)
+
+    def __repr__(self) -> str:
+        return (
+            f"procedural({self.name!r}, motion={self.motion!r}, "
+            f"size=({self.height}, {self.width}), speed={self.speed!r})"
+        )
