@@ -1,0 +1,34 @@
+"""Real-capture (.dat) loader: window, flip, crop and the crop's CFA phase."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from spikejdd.capture import Capture, CaptureWindows
+from spikesim.cfa import mask_planes
+from spikesim.errors import SpikeSimValueError
+
+DAT = Path("/work/shared/fixtures/peer-reds/203_part2_key_id151.dat")
+pytestmark = pytest.mark.skipif(not DAT.is_file(), reason="shared fixtures not present")
+
+
+def test_window_crop_and_pattern():
+    raw = np.fromfile(DAT, np.uint8)
+    ref = np.unpackbits(raw.reshape(-1, 250, 50), axis=-1, bitorder="little")[:, ::-1]
+    cap = Capture(DAT, 250, 400, cfa="RGGB")
+    spikes, cfa = cap.window(150, 41, crop=(11, 5, 20, 30))
+    np.testing.assert_array_equal(spikes, ref[130:171, 11:31, 5:35])
+    assert cfa == "BGGR"  # odd row and odd column offset
+    unflipped, _ = Capture(DAT, 250, 400, flip=False).window(150, 3)
+    np.testing.assert_array_equal(unflipped, ref[149:152, ::-1])
+    ds = CaptureWindows(cap, centers=[150], window=39, crop=(1, 0, 8, 8), packed=True)
+    s = ds[0]
+    assert s["meta"]["cfa"] == "GBRG" and s["spikes"].shape == (39, 8, 1)
+    np.testing.assert_array_equal(s["mask"].numpy(), mask_planes("GBRG", 8, 8))
+    with pytest.raises(SpikeSimValueError, match="centers"):
+        CaptureWindows(cap, centers=[5], window=39)
+    with pytest.raises(SpikeSimValueError, match="window"):
+        cap.window(150, 400)
