@@ -4,21 +4,28 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="simulate built-in scenes, write HDF5, previews and a report")
+    p = sub.add_parser("demo", help="build a small dataset from built-in scenes, preview it, "
+                                    "reconstruct it, and write report.md")
     p.add_argument("--out", default="demo_out", help="output folder (default: demo_out)")
-    p.add_argument("--size", type=int, default=256, help="frame side in pixels (default 256)")
-    p.add_argument("--readouts", type=int, default=801, help="readouts per sequence")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--size", type=int, default=None, help="frame side in pixels (default 256)")
+    p.add_argument("--limit", type=int, default=None, help="only the first N sequences")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from spikesim.demo import run_demo
 
-    results = run_demo(args.out, size=args.size, n_readouts=args.readouts, seed=args.seed)
-    print(f"{'sequence':34s} {'preset':9s} {'rate':>6s} {'px·readouts/s':>14s} {'TFP PSNR':>9s}")
-    for r in results:
-        print(f"{r.name:34s} {r.preset:9s} {r.firing_rate:6.3f} {r.px_readouts_per_s:14.3g} "
-              f"{r.tfp_psnr_db:8.2f}")
-    print(f"wrote {len(results)} sequences, previews and {args.out}/report.md")
+    r = run_demo(args.out, size=args.size, limit=args.limit)
+    print(f"{'sequence':26s} {'noise':5s} {'σ_g':>5s} {'σ_p':>5s} {'rate':>6s}")
+    for s in r["sequences"]:
+        print(f"{s['name']:26s} {s['noise']:5s} {s['sigma_g']:5.1f} {s['sigma_p']:5.1f} "
+              f"{s['firing_rate']:6.3f}")
+    rec = r["reconstruction"]
+    if rec:
+        print(f"\n{'method':24s} {'PSNR lin':>9s} {'SSIM lin':>9s} {'ms/frame':>9s}")
+        for m in rec["methods"]:
+            e = rec["summary"][m]["all"]
+            print(f"{m:24s} {e['PSNR[linear]']:9.2f} {e['SSIM-gauss11[linear]']:9.4f} "
+                  f"{e['ms_per_frame']:9.1f}")
+    print(f"\nwrote {len(r['sequences'])} sequences and {args.out}/report.md")
     return 0

@@ -1,0 +1,50 @@
+"""``spikesim dataset MANIFEST --out DIR``: build a dataset (see spikesim.dataset)."""
+
+from __future__ import annotations
+
+import json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("dataset", help="build a dataset from a TOML manifest",
+                       description="MANIFEST is a TOML file or builtin:NAME (see --list).")
+    p.add_argument("manifest", nargs="?", help="manifest.toml or builtin:NAME")
+    p.add_argument("--out", help="output folder")
+    p.add_argument("--workers", type=int, default=1, help="local worker processes (spawned)")
+    p.add_argument("--dask-local", type=int, default=None, metavar="N",
+                   help="start a local Dask cluster with N worker processes")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on an existing Dask scheduler, e.g. tcp://10.0.0.1:8786")
+    p.add_argument("--limit", type=int, default=None, help="only the first N sequences")
+    p.add_argument("--dry-run", action="store_true",
+                   help="print the plan with disk and time estimates, write nothing")
+    p.add_argument("--list", action="store_true", help="list the built-in manifests")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from spikesim.dataset import build_dataset, builtin_manifests, estimate_dataset, load_manifest
+    from spikesim.errors import SpikeSimValueError
+
+    if args.list:
+        for name, desc in builtin_manifests().items():
+            print(f"builtin:{name:20s} {desc}")
+        return 0
+    if not args.manifest:
+        raise SpikeSimValueError("MANIFEST is required (a .toml file or builtin:NAME)")
+    manifest = load_manifest(args.manifest)
+    if args.dry_run:
+        est = estimate_dataset(manifest, workers=args.dask_local or args.workers, limit=args.limit)
+        print(json.dumps(est, indent=2))
+        print(f"plan: {est['sequences']} sequences ({est['by_split']}), "
+              f"{est['px_readouts']:.3g} pixel-readouts, about "
+              f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s")
+        return 0
+    if not args.out:
+        raise SpikeSimValueError("--out is required (the output folder)")
+    summary = build_dataset(manifest, args.out, workers=args.workers, scheduler=args.scheduler,
+                            dask_local=args.dask_local, limit=args.limit)
+    print(summary.line())
+    for rec in summary.failures:
+        print(f"  failed {rec['file']}: {rec['error']}")
+    return 0 if summary.failed == 0 else 1

@@ -1,0 +1,278 @@
+"""Build a dataset: run every sequence task locally or on a Dask cluster, resumably.
+
+* One task per sequence (``plan.py``), seeds derived from the global seed and
+  the sequence id, so serial, process-pool and Dask runs give identical files.
+* A re-run skips sequences whose files exist and validate (same seed, sensor,
+  readouts); stale temporary files of killed workers are removed first.
+* A failing sequence is reported with its error and does not stop the others;
+  a worker process that dies fails only the tasks it held, and the pool is
+  restarted for the rest.
+* Each split folder gets an ``index.json`` (``spikesim.io.build_index``), and
+  the output folder ``plan.json`` (every task) and ``build_summary.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import multiprocessing as mp
+import os
+import tempfile
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from spikesim.dataset.manifest import Manifest
+from spikesim.dataset.plan import plan_tasks
+from spikesim.dataset.worker import run_task, validate_existing
+from spikesim.errors import bad_value
+
+__all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
+
+
+@dataclass
+class BuildSummary:
+    """What a build did; ``records`` has one entry per sequence run or skipped."""
+
+    done: int = 0
+    skipped: int = 0
+    failed: int = 0
+    bytes: int = 0
+    seconds: float = 0.0
+    px_readouts: int = 0
+    executor: str = "serial"
+    records: list = field(default_factory=list)
+
+    @property
+    def failures(self) -> list[dict]:
+        return [r for r in self.records if r["status"] == "failed"]
+
+    def seconds_by_stage(self) -> dict:
+        stages = ("scene", "flow", "kernel", "write", "total")
+        return {s: sum(r["seconds"][s] for r in self.records if r["status"] == "done")
+                for s in stages}
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["seconds_by_stage"] = self.seconds_by_stage()
+        return d
+
+    def line(self) -> str:
+        rate = self.px_readouts / self.seconds if self.seconds > 0 else 0.0
+        return (f"done {self.done}, skipped {self.skipped}, failed {self.failed}; "
+                f"{self.bytes / 2**20:.1f} MiB in {self.seconds:.1f} s "
+                f"({rate:.3g} px·readouts/s, {self.executor})")
+
+
+def _remove_stale_temps(out: Path, splits) -> int:
+    from spikesim.io._atomic import is_temp_name
+
+    removed = 0
+    for split in splits:
+        folder = out / split
+        if folder.is_dir():
+            for p in folder.iterdir():
+                if is_temp_name(p):
+                    p.unlink(missing_ok=True)
+                    removed += 1
+    return removed
+
+
+def _check_workers(workers) -> int:
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise bad_value("workers", workers, "an integer >= 1")
+    return workers
+
+
+def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int = 1,
+                  scheduler: str | None = None, dask_local: int | None = None,
+                  progress: bool = True, limit: int | None = None) -> BuildSummary:
+    """Generate every sequence of ``manifest`` under ``out_dir/<split>/``.
+
+    Parameters
+    ----------
+    workers : int
+        Local processes (spawned); 1 runs in this process.
+    scheduler : str, optional
+        Address of an existing Dask distributed scheduler (``tcp://host:8786``).
+    dask_local : int, optional
+        Start a local Dask cluster with this many worker processes.
+    limit : int, optional
+        Only the first ``limit`` sequences of the plan (for trials).
+    """
+    from tqdm.auto import tqdm
+
+    from spikesim.io import build_index
+
+    workers = _check_workers(workers)
+    if dask_local is not None:
+        _check_workers(dask_local)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    tasks = [t.to_dict() for t in plan_tasks(manifest)]
+    if limit is not None:
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+            raise bad_value("limit", limit, "an integer >= 1")
+        tasks = tasks[:limit]
+    splits = sorted({t["split"] for t in tasks})
+    _write_json(out / "plan.json", {"manifest": manifest.origin or manifest.name,
+                                    "tasks": tasks})
+    _remove_stale_temps(out, splits)
+
+    summary = BuildSummary()
+    pending = []
+    for t in tasks:
+        if validate_existing(out / t["file"], t):
+            summary.skipped += 1
+            summary.records.append({"id": t["id"], "file": t["file"], "split": t["split"],
+                                    "status": "skipped", "bytes": (out / t["file"]).stat().st_size,
+                                    "error": None, "px_readouts": 0, "seconds": {}})
+        else:
+            pending.append(t)
+    t0 = time.perf_counter()
+    bar = tqdm(total=len(pending), desc=f"dataset {manifest.name}", unit="seq",
+               disable=not progress)
+
+    def on_result(rec):
+        summary.records.append(rec)
+        if rec["status"] == "done":
+            summary.done += 1
+            summary.bytes += rec["bytes"]
+            summary.px_readouts += rec["px_readouts"]
+        else:
+            summary.failed += 1
+            bar.write(f"failed {rec['file']}: {rec['error']}")
+        elapsed = time.perf_counter() - t0
+        bar.set_postfix_str(f"{summary.px_readouts / max(elapsed, 1e-9):.3g} px·readouts/s")
+        bar.update(1)
+
+    try:
+        if scheduler is not None or dask_local is not None:
+            summary.executor = _run_dask(pending, out, scheduler, dask_local, on_result)
+        elif workers == 1 or len(pending) <= 1:
+            summary.executor = "serial"
+            for t in pending:
+                on_result(run_task(t, str(out)))
+        else:
+            summary.executor = f"{workers} local processes"
+            _run_pool(pending, out, workers, on_result)
+    finally:
+        bar.close()
+    summary.seconds = time.perf_counter() - t0
+    for split in splits:
+        if (out / split).is_dir():
+            build_index(out / split)
+    _write_json(out / "build_summary.json", summary.to_dict())
+    return summary
+
+
+def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    queue = list(pending)
+    ctx = mp.get_context("spawn")
+    while queue:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            futures = {}
+            broken = False
+            while (queue or futures) and not broken:
+                while queue and len(futures) < 2 * workers:
+                    t = queue.pop(0)
+                    futures[pool.submit(run_task, t, str(out), threads)] = t
+                done, _ = wait(futures, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    t = futures.pop(fut)
+                    try:
+                        on_result(fut.result())
+                    except BrokenProcessPool as exc:
+                        broken = True
+                        on_result(_lost(t, exc))
+            if broken:  # the pool is unusable: fail what it held, go on with a new one
+                for t in futures.values():
+                    on_result(_lost(t, BrokenProcessPool("worker process died")))
+
+
+def _lost(task: dict, exc: BaseException) -> dict:
+    return {"id": task["id"], "file": task["file"], "split": task["split"], "status": "failed",
+            "bytes": 0, "px_readouts": 0,
+            "error": f"{type(exc).__name__}: {exc or 'a worker process died'}",
+            "seconds": {"scene": 0.0, "flow": 0.0, "kernel": 0.0, "write": 0.0, "total": 0.0}}
+
+
+def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) -> str:
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError as exc:  # pragma: no cover - dask is a declared extra
+        raise bad_value("scheduler", scheduler or dask_local,
+                        "dask[distributed] installed (pip install 'spikesim[dist]')") from exc
+    cluster = None
+    if scheduler is not None:
+        client = Client(scheduler)
+        label = f"dask scheduler {scheduler}"
+    else:
+        cluster = LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+        label = f"dask LocalCluster ({dask_local} workers)"
+    try:
+        futures = [client.submit(run_task, t, str(out.resolve()), 1, pure=False,
+                                 key=f"seq-{t['file']}") for t in pending]
+        by_key = {f.key: t for f, t in zip(futures, pending, strict=True)}
+        for fut in as_completed(futures):
+            try:
+                on_result(fut.result())
+            except Exception as exc:  # noqa: BLE001 - a lost worker fails only its task
+                on_result(_lost(by_key[fut.key], exc))
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return label
+
+
+def _write_json(path: Path, data) -> None:
+    from spikesim.io._atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(json.dumps(data, indent=1))
+
+
+def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: int = 3,
+                     limit: int | None = None) -> dict:
+    """The plan of a build with disk and time estimates from a short calibration run.
+
+    Up to ``calibration_tasks`` sequences spread over the plan are generated
+    into a temporary folder; their bytes and seconds per pixel-readout are
+    extrapolated to the whole plan (time divided by ``workers``).
+    """
+    tasks = [t.to_dict() for t in plan_tasks(manifest)]
+    if limit is not None:
+        tasks = tasks[:limit]
+    px = int(manifest.size[0] * manifest.size[1])
+    total_px = px * sum(t["n_readouts"] for t in tasks)
+    picks = sorted({round(i * (len(tasks) - 1) / max(calibration_tasks - 1, 1))
+                    for i in range(min(calibration_tasks, len(tasks)))})
+    bytes_per_px = seconds_per_px = 0.0
+    with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
+        recs = [run_task(tasks[i], tmp) for i in picks]
+        ok = [r for r in recs if r["status"] == "done"]
+        if ok:
+            cal_px = sum(r["px_readouts"] for r in ok)
+            bytes_per_px = sum(r["bytes"] for r in ok) / cal_px
+            seconds_per_px = sum(r["seconds"]["total"] for r in ok) / cal_px
+    by_split: dict[str, int] = {}
+    for t in tasks:
+        by_split[t["split"]] = by_split.get(t["split"], 0) + 1
+    return {
+        "manifest": manifest.origin or manifest.name,
+        "sequences": len(tasks),
+        "by_split": by_split,
+        "readouts_per_sequence": manifest.n_readouts,
+        "size": list(manifest.size),
+        "px_readouts": total_px,
+        "estimated_bytes": int(math.ceil(bytes_per_px * total_px)),
+        "estimated_seconds": seconds_per_px * total_px / max(workers, 1),
+        "calibrated_on": [tasks[i]["file"] for i in picks],
+        "calibration_failures": [r["error"] for r in recs if r["status"] != "done"],
+    }

@@ -1,0 +1,113 @@
+"""Expand a manifest into one task per sequence, each with its own derived seed.
+
+The seed of a sequence is a hash of the global seed and the sequence id, so a
+sequence's content does not depend on how many others there are, on the
+order of execution, or on which machine runs it; it is recorded in the file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from spikesim.dataset.manifest import Manifest, SourceSpec
+from spikesim.sensor import Sensor
+
+__all__ = ["SequenceTask", "plan_tasks", "derive_seed"]
+
+
+def derive_seed(global_seed: int, sequence_id: str) -> int:
+    """64-bit seed of one sequence (BLAKE2b of the global seed and the id)."""
+    digest = hashlib.blake2b(f"{global_seed}:{sequence_id}".encode(), digest_size=8).digest()
+    return int.from_bytes(digest, "little") >> 1  # non-negative int64
+
+
+@dataclass(frozen=True)
+class SequenceTask:
+    """Everything a worker needs to produce one sequence file (JSON-able)."""
+
+    id: str
+    split: str
+    file: str  # relative to the output folder
+    seed: int
+    n_readouts: int
+    gt_readouts: tuple
+    sensor: dict
+    scene: dict
+    noise_label: str
+    compression: str | None
+    clean_twin: bool
+    manifest: str
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
+
+
+def _draw_noise(manifest: Manifest, rng: np.random.Generator):
+    weights = np.array([n.weight for n in manifest.noises], np.float64)
+    spec = manifest.noises[int(rng.choice(len(weights), p=weights / weights.sum()))]
+    if spec.mode == "none":
+        return None, spec.label
+    params = {}
+    for k, d in spec.params.items():
+        v = d.sample(rng)
+        params[k] = int(v) if k == "fpn_seed" else v
+    return {"type": spec.mode, **params}, spec.label
+
+
+def _scene_specs(src: SourceSpec, manifest: Manifest):
+    """(short name, scene spec without random draws) for each sequence of a source."""
+    h, w = manifest.size
+    if src.kind == "procedural":
+        motions = src.motions or (None,)
+        for k in range(src.count):
+            scene = src.scenes[k % len(src.scenes)]
+            motion = motions[(k // len(src.scenes)) % len(motions)]
+            name = f"{scene}-{motion}-{k:04d}" if motion else f"{scene}-{k:04d}"
+            yield name, {"kind": "procedural", "name": scene, "motion": motion, "size": [h, w]}
+    elif src.kind == "python":
+        for k in range(src.count):
+            yield f"{_slug(src.factory.split(':')[1])}-{k:04d}", {
+                "kind": "python", "factory": src.factory, "index": k, "size": [h, w]}
+    else:
+        layout = {"reds": "reds", "davis": "davis", "video": "auto"}[src.kind]
+        for seq in src.sequences:
+            spec = {"kind": "video", "path": src.path, "layout": layout, "fps": src.fps,
+                    "size": [h, w]}
+            if src.kind != "video":
+                spec["sequence"] = seq
+            yield _slug(seq), spec
+
+
+def plan_tasks(manifest: Manifest) -> list[SequenceTask]:
+    """All sequence tasks of a manifest, in a stable order."""
+    tasks = []
+    for src in manifest.sources:
+        for short, spec in _scene_specs(src, manifest):
+            seq_id = f"{src.index:02d}-{short}"
+            seed = derive_seed(manifest.seed, f"{src.split}/{seq_id}")
+            rng = np.random.default_rng(seed)
+            if src.speed is not None:
+                spec["speed"] = src.speed.sample(rng)
+            spec["options"] = {k: d.sample(rng) for k, d in src.options.items()}
+            noise, label = _draw_noise(manifest, rng)
+            sensor = manifest.sensor.to_dict()
+            sensor["noise"] = noise
+            sensor = Sensor.from_dict(sensor).to_dict()  # canonical: every field, as stored
+            tasks.append(SequenceTask(
+                id=seq_id, split=src.split, file=f"{src.split}/{seq_id}.h5", seed=seed,
+                n_readouts=manifest.n_readouts, gt_readouts=tuple(manifest.gt_readouts),
+                sensor=sensor, scene=spec, noise_label=label, compression=manifest.compression,
+                clean_twin=manifest.clean_twin, manifest=manifest.name,
+            ))
+    ids = [t.file for t in tasks]
+    if len(set(ids)) != len(ids):  # pragma: no cover - ids embed the source index
+        raise RuntimeError("duplicate sequence ids in the plan")
+    return tasks

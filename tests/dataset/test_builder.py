@@ -1,0 +1,228 @@
+"""Dataset builder: manifests, determinism across executors, failures, resume, dry run."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from spikesim.dataset import (
+    build_dataset,
+    builtin_manifests,
+    derive_seed,
+    estimate_dataset,
+    load_manifest,
+    parse_manifest,
+    plan_tasks,
+)
+from spikesim.errors import SpikeSimFileError, SpikeSimValueError
+from spikesim.io import open_dataset
+
+
+def small_manifest(count=3, size=(24, 40), extra_sources=(), **dataset):
+    return {
+        "dataset": {"name": "t", "seed": 5, "size": list(size), "window": 9,
+                    "samples_per_sequence": 2, **dataset},
+        "sensor": {"preset": "ideal"},
+        "noise": [
+            {"mode": "paper", "label": "GN", "sigma_g": {"uniform": [0, 15]}},
+            {"mode": "paper", "label": "GPN", "sigma_g": {"uniform": [0, 5]},
+             "sigma_p": {"uniform": [0, 5]}},
+        ],
+        "sources": [{"kind": "procedural", "scenes": ["astronaut", "coffee"],
+                     "motions": ["pan", "zoom"], "speed": {"uniform": [100, 2000]},
+                     "count": count, "split": "train"},
+                    *extra_sources],
+    }
+
+
+def _content(path: Path) -> dict:
+    with h5py.File(path, "r") as f:
+        out = {k: f[k][()] for k in f.keys()}
+        out.update({f"attr:{k}": v for k, v in f.attrs.items() if k != "versions"})
+    return out
+
+
+def _assert_same_files(a: Path, b: Path):
+    files_a = sorted(p.relative_to(a) for p in a.rglob("*.h5"))
+    assert files_a == sorted(p.relative_to(b) for p in b.rglob("*.h5")) and files_a
+    for rel in files_a:
+        ca, cb = _content(a / rel), _content(b / rel)
+        assert ca.keys() == cb.keys()
+        for k in ca:
+            np.testing.assert_array_equal(ca[k], cb[k], err_msg=f"{rel}:{k}")
+
+
+def test_builtin_manifests_validate_and_plan():
+    names = builtin_manifests()
+    assert {"demo", "sjdd-train-small", "sjdd-eval-object", "sjdd-eval-camera"} <= set(names)
+    for name in names:
+        m = load_manifest(f"builtin:{name}")
+        tasks = plan_tasks(m)
+        assert tasks and len({t.file for t in tasks}) == len(tasks)
+        assert all(t.n_readouts == m.window * m.samples_per_sequence for t in tasks)
+        # GT at the centre of each window
+        assert tasks[0].gt_readouts[0] == m.window // 2
+
+
+def test_seeds_are_derived_from_global_seed_and_id():
+    m = parse_manifest(small_manifest(count=4))
+    tasks = plan_tasks(m)
+    assert [t.seed for t in tasks] == [derive_seed(5, f"{t.split}/{t.id}") for t in tasks]
+    # a sequence keeps its seed and parameters when the dataset grows
+    bigger = plan_tasks(parse_manifest(small_manifest(count=9)))
+    for t in tasks:
+        same = next(b for b in bigger if b.id == t.id)
+        assert same.seed == t.seed and same.sensor == t.sensor and same.scene == t.scene
+    noise = {t.noise_label for t in bigger}
+    assert noise == {"GN", "GPN"}
+
+
+def test_serial_pool_and_dask_give_identical_files(tmp_path):
+    m = parse_manifest(small_manifest(count=4))
+    s1 = build_dataset(m, tmp_path / "serial", workers=1, progress=False)
+    assert s1.done == 4 and s1.failed == 0
+    s2 = build_dataset(m, tmp_path / "pool", workers=2, progress=False)
+    assert s2.done == 4 and s2.failed == 0
+    s3 = build_dataset(m, tmp_path / "dask", dask_local=2, progress=False)
+    assert s3.done == 4 and s3.failed == 0 and "dask" in s3.executor
+    _assert_same_files(tmp_path / "serial", tmp_path / "pool")
+    _assert_same_files(tmp_path / "serial", tmp_path / "dask")
+    ds = open_dataset(tmp_path / "serial" / "train")
+    assert len(ds) == 4
+    seq = ds.sequence(ds.names[0])
+    assert seq.n_readouts == 18 and list(seq.gt_index) == [4, 13]
+    assert seq.meta["dataset"]["manifest"] == "t"
+
+
+FACTORY = textwrap.dedent(
+    """
+    import os
+    from pathlib import Path
+    import numpy as np
+    from spikesim.scenes import Static
+
+    MARKER = Path(__file__).with_name("killed.marker")
+
+    class Killer(Static):
+        def radiance(self, t):
+            if not MARKER.exists():
+                MARKER.write_text("killed once")
+                os._exit(3)   # the worker dies mid-sequence, its file half written
+            return super().radiance(t)
+
+    def make(index, size, seed, mode="ok"):
+        img = np.full(tuple(size) + (3,), 0.1 + 0.1 * index, np.float32)
+        if mode == "raise" and index == 1:
+            raise RuntimeError("injected failure")
+        if mode == "kill" and index == 2:
+            return Killer(img)
+        return Static(img)
+    """
+)
+
+
+@pytest.fixture()
+def factory_module(tmp_path, monkeypatch):
+    mod = tmp_path / "mods"
+    mod.mkdir()
+    (mod / "inject_scenes.py").write_text(FACTORY)
+    monkeypatch.syspath_prepend(str(mod))
+    return mod
+
+
+def _py_source(mode, count=4):
+    return {"kind": "python", "factory": "inject_scenes:make", "count": count,
+            "options": {"mode": mode}, "split": "inj"}
+
+
+def test_failing_sequence_is_reported_and_rerun_completes(tmp_path, factory_module):
+    m = parse_manifest(small_manifest(count=1, extra_sources=[_py_source("raise")]))
+    out = tmp_path / "out"
+    s = build_dataset(m, out, workers=1, progress=False)
+    assert s.failed == 1 and s.done == 4
+    assert "injected failure" in s.failures[0]["error"]
+    assert not (out / s.failures[0]["file"]).exists()
+    # the next run (failure fixed) redoes only what is missing
+    m2 = parse_manifest(small_manifest(count=1, extra_sources=[_py_source("ok")]))
+    s2 = build_dataset(m2, out, workers=1, progress=False)
+    assert s2.done == 4 and s2.skipped == 1 and s2.failed == 0
+
+
+def test_killed_worker_loses_nothing(tmp_path, factory_module):
+    m = parse_manifest(small_manifest(count=2, extra_sources=[_py_source("kill")]))
+    out = tmp_path / "out"
+    s = build_dataset(m, out, workers=2, progress=False)
+    assert s.failed >= 1
+    assert all("died" in r["error"] or "Broken" in r["error"] for r in s.failures)
+    finals = {p.name for p in (out / "inj").glob("*.h5")}
+    for r in s.failures:  # no partial file under a final name
+        assert Path(r["file"]).name not in finals
+    s2 = build_dataset(m, out, workers=2, progress=False)
+    assert s2.failed == 0 and s2.done == s.failed
+    assert not [p for p in (out / "inj").iterdir() if p.name.startswith(".")]  # temps gone
+    assert len(open_dataset(out / "inj")) == 4
+
+
+@pytest.mark.parametrize(
+    "mutate,where",
+    [
+        (lambda d: d["dataset"].update(size=[0, 10]), "dataset.size[0]"),
+        (lambda d: d["dataset"].update(windw=3), "dataset.windw"),
+        (lambda d: d["noise"][0].update(sigma_g={"uniform": [0, 300]}), "noise[0].sigma_g"),
+        (lambda d: d["noise"][0].update(sigma_g={"gauss": [0, 3]}), "noise[0].sigma_g"),
+        (lambda d: d["noise"][1].update(mode="pink"), "noise[1].mode"),
+        (lambda d: d["sources"][0].update(scenes=["marsrover"]), "sources[0].scenes"),
+        (lambda d: d["sources"][0].update(motions=["wobble"]), "sources[0].motions"),
+        (lambda d: d["sources"][0].update(count=0), "sources[0].count"),
+        (lambda d: d["sources"][0].update(kind="reds", path="/no/such/reds"), "sources[0]"),
+        (lambda d: d["sensor"].update(clock_hz=-5), "clock_hz"),
+        (lambda d: d["sensor"].update(preset="vidar-9000"), "preset"),
+    ],
+)
+def test_manifest_errors_name_the_key(mutate, where):
+    d = small_manifest()
+    mutate(d)
+    with pytest.raises(SpikeSimValueError) as info:
+        parse_manifest(d)
+    assert where in str(info.value)
+
+
+def test_missing_manifest_file_and_bad_toml(tmp_path):
+    with pytest.raises(SpikeSimFileError):
+        load_manifest(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[dataset\nname=")
+    with pytest.raises(SpikeSimValueError, match="TOML"):
+        load_manifest(bad)
+    with pytest.raises(SpikeSimValueError, match="builtin"):
+        load_manifest("builtin:nothing")
+
+
+def test_dry_run_estimates_disk_within_25_percent(tmp_path):
+    m = parse_manifest(small_manifest(count=6, size=(48, 64)))
+    est = estimate_dataset(m, calibration_tasks=2)
+    s = build_dataset(m, tmp_path / "out", progress=False)
+    assert est["sequences"] == 6 and s.done == 6
+    assert abs(est["estimated_bytes"] / s.bytes - 1) < 0.25
+
+
+def test_video_sources_are_listed_from_a_reds_root(tmp_path):
+    import cv2
+
+    root = tmp_path / "reds"
+    for seq in ("000", "001"):
+        (root / seq).mkdir(parents=True)
+        for k in range(3):
+            img = np.full((20, 30, 3), 40 * (k + 1), np.uint8)
+            cv2.imwrite(str(root / seq / f"{k:08d}.png"), img)
+    d = small_manifest()
+    d["sources"] = [{"kind": "reds", "path": str(root), "fps": 120, "split": "v"}]
+    m = parse_manifest(d)
+    tasks = plan_tasks(m)
+    assert [t.scene["sequence"] for t in tasks] == ["000", "001"]
+    s = build_dataset(m, tmp_path / "out", progress=False)
+    assert s.done == 2, s.failures
