@@ -7,7 +7,7 @@ Public API (DESIGN.md §4)::
     stream = ss.simulate(ss.scenes.Static(image), sensor, n_readouts=1000, seed=0)
 """
 
-from spikesim import bits, cfa, noise, scenes
+from spikesim import bits, cfa, io, noise, scenes
 from spikesim._version import __version__
 from spikesim.errors import (
     SpikeSimError,
@@ -31,6 +31,7 @@ __all__ = [
     "SpikeChunk",
     "ideal_spike_times",
     "bits",
+    "io",
     "cfa",
     "noise",
     "scenes",

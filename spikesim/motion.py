@@ -42,10 +42,10 @@ import time
 from dataclasses import dataclass
 
 import cv2
-import numba
 import numpy as np
 from scipy import ndimage
 
+from spikesim._kernels import splat_flow
 from spikesim.errors import SpikeSimValueError, bad_value
 
 __all__ = [
@@ -204,46 +204,13 @@ def n_intermediate(max_disp: float, max_px: float = 1.0, cap: int = 255) -> int:
     return int(min(cap, math.ceil(max_disp / max_px - 1e-9) - 1))
 
 
-@numba.njit(cache=True, nogil=True)
-def _splat_kernel(flow, select, scale, sign, wsum, vsum):  # pragma: no cover - compiled
-    """Bilinear forward splatting of motion vectors (numba; no input checks).
-
-    Pixel ``(y, x)`` with ``select`` true moves to ``(x, y) + scale · flow`` and
-    deposits the vector ``sign · flow`` there with bilinear weights.
-    """
-    h, w = select.shape
-    for y in range(h):
-        for x in range(w):
-            if not select[y, x]:
-                continue
-            fx, fy = flow[y, x, 0], flow[y, x, 1]
-            px, py = x + scale * fx, y + scale * fy
-            x0, y0 = int(np.floor(px)), int(np.floor(py))
-            ax, ay = px - x0, py - y0
-            for dy in range(2):
-                yi = y0 + dy
-                if yi < 0 or yi >= h:
-                    continue
-                wy = ay if dy else 1.0 - ay
-                for dx in range(2):
-                    xi = x0 + dx
-                    if xi < 0 or xi >= w:
-                        continue
-                    wt = wy * (ax if dx else 1.0 - ax)
-                    if wt <= 0.0:
-                        continue
-                    wsum[yi, xi] += wt
-                    vsum[yi, xi, 0] += wt * sign * fx
-                    vsum[yi, xi, 1] += wt * sign * fy
-
-
 def _splat_flows(pair: PairMotion, tau: float, sel0: np.ndarray, sel1: np.ndarray):
     """Splat ``F01`` of frame 0 to ``x + τF01`` and ``−F10`` of frame 1 to ``x + (1−τ)F10``."""
     h, w = pair.fwd.shape[:2]
     wsum = np.zeros((h, w))
     vsum = np.zeros((h, w, 2))
-    _splat_kernel(pair.fwd, np.ascontiguousarray(sel0), float(tau), 1.0, wsum, vsum)
-    _splat_kernel(pair.bwd, np.ascontiguousarray(sel1), float(1.0 - tau), -1.0, wsum, vsum)
+    splat_flow(pair.fwd, np.ascontiguousarray(sel0), float(tau), 1.0, wsum, vsum)
+    splat_flow(pair.bwd, np.ascontiguousarray(sel1), float(1.0 - tau), -1.0, wsum, vsum)
     return wsum, vsum
 
 

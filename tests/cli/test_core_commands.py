@@ -21,18 +21,26 @@ def test_presets_command(capsys):
 
 
 def test_demo_runs_end_to_end_small(tmp_path, capsys):
+    """The README's main job, at reduced size: dataset, previews, reconstruction, report."""
     out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--size", "32", "--readouts", "81"]) == 0
+    assert main(["demo", "--out", str(out), "--size", "32", "--limit", "3"]) == 0
     report = (out / "report.md").read_text()
     summary = json.loads((out / "summary.json").read_text())
-    assert len(summary) == 12
-    for item in summary:
-        assert (out / f"{item['name']}.h5").exists() and (out / f"{item['name']}.png").exists()
+    assert len(summary["sequences"]) == 3 and summary["built"] == 3
+    for item in summary["sequences"]:
+        assert (out / "demo" / f"{item['name']}.h5").exists()
+        assert (out / item["preview"]).exists() and item["name"] in report
         assert 0.0 < item["firing_rate"] < 0.6
-        assert item["tfp_psnr_db"] > 15
-        assert item["name"].split("_")[0].split("-")[0] in report
-    with ss.io.open_h5(out / f"{summary[0]['name']}.h5") as seq:
-        assert seq.n_readouts == 81 and seq.cfa == "RGGB"
+        assert item["noise"] in ("GN", "GPN")
+    rec = summary["reconstruction"]
+    assert rec and rec["frames"] == 9
+    for m in rec["methods"]:
+        assert 15 < rec["summary"][m]["all"]["PSNR[linear]"] < 60
+        assert m in report
+    assert all((out / p["path"]).exists() for p in rec["panels"])
+    # a second run reuses the files
+    assert main(["demo", "--out", str(out), "--size", "32", "--limit", "3"]) == 0
+    assert json.loads((out / "summary.json").read_text())["reused"] == 3
 
 
 @pytest.mark.parametrize("suffix", [".h5", ".dat"])

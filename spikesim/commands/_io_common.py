@@ -1,0 +1,63 @@
+"""Options shared by the file commands (info, convert, preview) to open a spike file."""
+
+from __future__ import annotations
+
+import argparse
+
+from spikesim.io.source import open_source
+
+__all__ = ["add_source_options", "source_from_args", "parse_crop"]
+
+
+def add_source_options(parser: argparse.ArgumentParser) -> None:
+    g = parser.add_argument_group("input")
+    g.add_argument("--sequence", default=None,
+                   help="sequence name (or position) in a dataset folder; default: the first")
+    g.add_argument("--height", type=int, default=None,
+                   help=".dat: frame height in pixels (default: guess from known sensor sizes)")
+    g.add_argument("--width", type=int, default=None,
+                   help=".dat: stored frame width in pixels, head columns included")
+    g.add_argument("--no-flip", dest="flip", action="store_false",
+                   help=".dat: the file is stored top row first (default: upside down, PKU)")
+    g.add_argument("--drop-head", action="store_true",
+                   help=".dat: drop the 16 head columns of a raw 416-wide capture")
+    g.add_argument("--partial", choices=("error", "drop"), default="error",
+                   help=".dat: a trailing partial frame is an error (default) or dropped")
+    g.add_argument("--cfa", default=None,
+                   help=".dat: Bayer pattern of the sensor (RGGB, BGGR, GRBG, GBRG; default mono)")
+    g.add_argument("--clock-hz", type=float, default=None, help=".dat: readout clock in Hz")
+
+
+def _sequence_key(text):
+    if text is None:
+        return None
+    return int(text) if text.lstrip("-").isdigit() else text
+
+
+def source_from_args(args: argparse.Namespace, path):
+    """Open ``path`` per the options; library warnings become one ``note:`` line on stderr."""
+    import sys
+    import warnings
+
+    from spikesim.io.dat import RAW_HEAD_COLUMNS
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        src = open_source(
+            path, sequence=_sequence_key(args.sequence), height=args.height, width=args.width,
+            flip=args.flip, head_columns=RAW_HEAD_COLUMNS if args.drop_head else 0,
+            cfa=args.cfa, clock_hz=args.clock_hz, partial=args.partial,
+        )
+    for w in caught:
+        print(f"spikesim {args.command}: note: {w.message}", file=sys.stderr)
+    return src
+
+
+def parse_crop(text: str | None):
+    """``TOP,LEFT,HEIGHT,WIDTH`` -> tuple of ints (validated later by the reader)."""
+    if text is None:
+        return None
+    parts = text.split(",")
+    if len(parts) != 4 or not all(p.strip().isdigit() for p in parts):
+        raise argparse.ArgumentTypeError(f"--crop {text!r}: expected TOP,LEFT,HEIGHT,WIDTH")
+    return tuple(int(p) for p in parts)
