@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from fixture_paths import PEER_REDS
 
 from spikesim.errors import SpikeSimTypeError, SpikeSimValueError
 from spikesim.estimate import tfi, tfp, tfp_std, window_bounds
 
-FIXTURE = Path(__file__).resolve().parents[2] / "shared" / "fixtures" / "peer-reds"
-if not FIXTURE.is_dir():
-    FIXTURE = Path("/work/shared/fixtures/peer-reds")
+FIXTURE = PEER_REDS
 
 
 def ideal_stream(intensity: np.ndarray, n: int, rate: float, phase: np.ndarray) -> np.ndarray:

@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
+from fixture_paths import PEER_REDS
 from PIL import Image
 
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimValueError
 from spikesim.io import DatFile, DatWriter, guess_dat_shape, open_dat, read_dat, write_dat
 
-PEER = Path(__file__).resolve().parents[3] / "shared" / "fixtures" / "peer-reds"
+PEER = PEER_REDS
 PEER_DAT = PEER / "203_part2_key_id151.dat"
 PEER_PNG = PEER / "203_part2_key_id151.png"
 needs_peer = pytest.mark.skipif(not PEER_DAT.is_file(), reason="shared/fixtures not present")

@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from fixture_paths import PEER_REDS
 
 from spikejdd.capture import Capture, CaptureWindows
 from spikesim.cfa import mask_planes
 from spikesim.errors import SpikeSimValueError
 
-DAT = Path("/work/shared/fixtures/peer-reds/203_part2_key_id151.dat")
+DAT = PEER_REDS / "203_part2_key_id151.dat"
 pytestmark = pytest.mark.skipif(not DAT.is_file(), reason="shared fixtures not present")
 
 

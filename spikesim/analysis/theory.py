@@ -1,0 +1,142 @@
+"""Closed-form predictions of the integrate-and-fire model used by every study.
+
+Notation: ``q`` is the charge per readout in units of the pixel's own
+threshold (``q = r·(g·I + d)/t``, see :func:`spikesim.noise.fixed_pattern`),
+``w`` a window in readouts.  Derivations (DESIGN.md §2, Dong et al. AAAI 2024
+eq. 1 for the pixel, eq. 5 for paper-mode noise):
+
+* **Rate.**  Modulo and subtract reset fire ``min(q, 1)`` spikes per readout
+  on average (one spike per readout at most); zero reset discards the residual
+  charge, so a cycle lasts ``ceil(1/q)`` readouts and the rate is
+  ``1/ceil(1/q)`` (``q ≥ 1``: 1).
+* **Count over a window.**  The count is ``floor(a + X) − floor(a)`` for a
+  uniform phase ``a`` and the window's charge ``X`` (thresholds).  Given X the
+  count is ``⌊X⌋`` or ``⌊X⌋+1`` with ``P = frac(X)``, so
+  ``E = E[X]`` and ``Var = Var(X) + E[frac(X)(1 − frac(X))]``.  Noise free,
+  ``Var = f(1 − f)`` with ``f = frac(w·q)``.
+* **Per-readout charge variance** ``v1`` (thresholds²): Poisson shot noise on
+  ``E`` electrons per threshold gives ``q/E``; comparator jitter of relative
+  s.d. ``σ_t`` per firing cycle gives ``q·σ_t²`` (one draw per threshold
+  crossed); together ``q·κ²`` with the **cycle coefficient of variation**
+  ``κ² = σ_t² + 1/E``.  Paper mode: ``r²·(σ_g² + σ_p²·y)/255²`` with ``y`` in DN.
+* **Inter-spike interval.**  The unclocked cycle length is
+  ``τ ~ (1/q)·(1 + κ·z)`` readouts (renewal, independent cycles), so
+  ``Var(τ) = κ²/q²``.  Clocking maps ``τ`` to ``⌈τ − u⌉`` with the phase ``u``
+  of the previous spike, i.e. ``⌊τ⌋`` or ``⌊τ⌋+1`` with ``P = frac(τ)``:
+  ``E[ISI] = 1/q`` and ``Var(ISI) = κ²/q² + E[frac(τ)(1 − frac(τ))]``.
+  Noise free this is ``p(1 − p)``, ``p = frac(1/q)``: intervals of
+  ``floor(1/q)`` and ``ceil(1/q)`` readouts only.  With ``sd(τ) ≳ 0.5``
+  readouts the second term is 1/6.
+
+The expectation ``E[frac(X)(1 − frac(X))]`` over a Gaussian ``X`` is computed
+from the Fourier series of the sawtooth (:func:`frac_variance`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spikesim.noise import PaperNoise, PhysicalNoise
+
+__all__ = [
+    "rate_theory",
+    "frac_variance",
+    "count_variance",
+    "cycle_cv2",
+    "charge_variance_per_readout",
+    "isi_mean_theory",
+    "isi_var_theory",
+    "isi_clean_pmf",
+]
+
+#: Terms of the Fourier series in :func:`frac_variance`.
+_FOURIER_TERMS = 400
+_M = np.arange(1, _FOURIER_TERMS + 1, dtype=np.float64)[None, :]
+
+
+def rate_theory(q, reset: str = "modulo") -> np.ndarray:
+    """Mean spikes per readout at charge ``q`` thresholds/readout for a reset mode."""
+    q = np.asarray(q, dtype=np.float64)
+    if reset == "zero":
+        with np.errstate(divide="ignore"):
+            cyc = np.ceil(np.where(q > 0, 1.0 / np.maximum(q, 1e-300), np.inf) - 1e-12)
+        return np.where(q >= 1.0, 1.0, np.where(q > 0, 1.0 / cyc, 0.0))
+    return np.minimum(q, 1.0)
+
+
+def frac_variance(mean, sd) -> np.ndarray:
+    """``E[frac(X)(1 − frac(X))]`` for ``X ~ N(mean, sd²)`` (``sd = 0``: exact value).
+
+    Uses the Fourier series of the periodic function
+    ``f(1 − f) = 1/6 − Σ_m cos(2πm f)/(π² m²)`` and
+    ``E[cos(2πmX)] = cos(2πm·mean)·exp(−2π²m²sd²)`` (exact up to truncation at
+    :data:`_FOURIER_TERMS` terms, error < 1/(π²·M)).
+    """
+    mean = np.asarray(mean, dtype=np.float64)
+    sd = np.asarray(sd, dtype=np.float64)
+    mean, sd = np.broadcast_arrays(mean, sd)
+    f0 = mean - np.floor(mean)
+    out = f0 * (1.0 - f0)
+    noisy = sd > 0
+    if np.any(noisy):
+        mu, s = mean[noisy][:, None], sd[noisy][:, None]
+        series = np.cos(2 * np.pi * _M * (mu - np.floor(mu))) * np.exp(
+            -2 * np.pi**2 * _M**2 * s**2) / (np.pi**2 * _M**2)
+        out = np.array(out, dtype=np.float64)
+        out[noisy] = 1.0 / 6.0 - series.sum(axis=1)
+    return np.clip(out, 0.0, 0.25)
+
+
+def cycle_cv2(noise) -> float:
+    """Squared coefficient of variation κ² of one firing cycle (physical noise)."""
+    if not isinstance(noise, PhysicalNoise):
+        return 0.0
+    k2 = noise.temporal_threshold_noise**2
+    if noise.shot_noise:
+        k2 += 1.0 / noise.electrons_per_threshold
+    return float(k2)
+
+
+def charge_variance_per_readout(q, noise, full_scale_rate: float, intensity=None):
+    """Per-readout variance of the charge (thresholds²) at mean charge ``q``.
+
+    Physical mode: ``q·κ²`` (see module notes; fixed-pattern electrons per
+    threshold are ignored to first order).  Paper mode (eq. 5):
+    ``r²·(σ_g² + σ_p²·y)/255²``, ``y = 255·intensity`` (clipping at 0 ignored).
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if isinstance(noise, PhysicalNoise):
+        return q * cycle_cv2(noise)
+    if isinstance(noise, PaperNoise):
+        y = 255.0 * np.asarray(intensity if intensity is not None else 0.0, dtype=np.float64)
+        return full_scale_rate**2 * noise.variance_dn(y) / 255.0**2 + 0.0 * q
+    return np.zeros_like(q)
+
+
+def count_variance(q, window: int, v1=0.0) -> np.ndarray:
+    """Variance of the spike count over ``window`` readouts (non-saturating ``q < 1``)."""
+    q = np.asarray(q, dtype=np.float64)
+    vx = window * np.asarray(v1, dtype=np.float64)
+    return vx + frac_variance(window * q, np.sqrt(vx))
+
+
+def isi_mean_theory(q) -> np.ndarray:
+    """Mean inter-spike interval (readouts) at charge ``q < 1``: ``1/q``."""
+    return 1.0 / np.asarray(q, dtype=np.float64)
+
+
+def isi_var_theory(q, kappa2: float = 0.0) -> np.ndarray:
+    """Variance of the clocked inter-spike interval (readouts²), see module notes."""
+    q = np.asarray(q, dtype=np.float64)
+    sd = np.sqrt(kappa2) / q
+    return sd**2 + frac_variance(1.0 / q, sd)
+
+
+def isi_clean_pmf(q: float) -> dict[int, float]:
+    """Noise-free interval distribution: ``{floor(1/q): 1 − p, ceil(1/q): p}``."""
+    inv = 1.0 / float(q)
+    n = int(np.floor(inv))
+    p = inv - n
+    if p < 1e-12:
+        return {n: 1.0}
+    return {n: 1.0 - p, n + 1: p}

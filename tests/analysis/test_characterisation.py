@@ -1,0 +1,147 @@
+"""Characterisation curves: exact on noise-free streams, moving as predicted with one source on.
+
+Statistical tolerances are about 4 standard errors of the statistic (fixed seeds).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import spikesim as ss
+from spikesim.analysis import isi_statistics, snr_curve, transfer_curve
+from spikesim.errors import SpikeSimValueError
+
+
+def only(**kw):
+    base = dict(shot_noise=False, dark_current_rel=0.0, dark_current_spread=0.0,
+                threshold_mismatch=0.0, prnu=0.0, temporal_threshold_noise=0.0,
+                hot_pixel_fraction=0.0)
+    base.update(kw)
+    return ss.noise.PhysicalNoise(**base)
+
+
+MONO = ss.Sensor(cfa=None)
+LEVELS = (0.0, 0.02, 0.3, 0.7, 1.2, 2.0, 3.0)
+
+
+@pytest.fixture(scope="module")
+def clean_transfer():
+    return transfer_curve(MONO, LEVELS, n_readouts=1000, size=(16, 16), window=50)
+
+
+def test_transfer_noise_free_matches_theory(clean_transfer):
+    d = clean_transfer.data
+    r = MONO.full_scale_rate
+    for level, m, ideal, fpn, tsd, tsd_th in zip(d["levels"], d["mean_rate"], d["ideal_rate"],
+                                                 d["fpn_sd"], d["temporal_sd"],
+                                                 d["temporal_sd_theory"], strict=True):
+        assert ideal == min(r * level, 1.0)
+        # count over N readouts is floor(a0 + N·q) − floor(a0): mean within 1/N of q
+        assert abs(m - ideal) <= 1.0 / 1000 + 1e-12
+        assert fpn <= 1.0 / 1000 + 1e-12  # per-pixel means differ by at most one count
+        # window-count variance f(1−f), f = frac(50·q) (compare variances: f can be ~1e-6)
+        v, vt = (tsd * 50) ** 2, (tsd_th * 50) ** 2
+        assert abs(v - vt) <= 0.15 * vt + 0.01
+    assert d["mean_rate"][-1] == 1.0 and d["mean_rate"][0] == 0.0
+
+
+def test_transfer_prnu_raises_fixed_pattern_not_temporal(clean_transfer):
+    prnu = 0.05
+    res = transfer_curve(MONO.replace(noise=only(prnu=prnu)), (0.3, 0.7), n_readouts=1000,
+                         size=(16, 16), window=50)
+    for i, level in enumerate((0.3, 0.7)):
+        j = LEVELS.index(level)
+        # FPN ≈ r·I·prnu (256 pixels: sd of the sd ≈ 4.4 %)
+        assert res.data["fpn_sd"][i] == pytest.approx(0.6 * level * prnu, rel=0.2)
+        assert res.data["fpn_sd"][i] == pytest.approx(res.data["fpn_sd_theory"][i], rel=0.05)
+        # no temporal noise is added: the window count stays within quantization
+        # (sd ≤ 1/2 count); spreading q over pixels only spreads the phase f(1−f)
+        assert res.data["temporal_sd"][i] <= 0.5 / 50
+        assert res.data["temporal_sd"][i] == pytest.approx(
+            res.data["temporal_sd_theory"][i], rel=0.1)
+        assert clean_transfer.data["fpn_sd"][j] < res.data["fpn_sd"][i] / 10
+
+
+def test_transfer_shot_noise_raises_temporal_as_predicted(clean_transfer):
+    res = transfer_curve(MONO.replace(noise=only(shot_noise=True, electrons_per_threshold=20.0)),
+                         (0.3, 0.7), n_readouts=2000, size=(16, 16), window=50)
+    for i, level in enumerate((0.3, 0.7)):
+        q = 0.6 * level
+        assert res.data["temporal_sd"][i] > 2 * clean_transfer.data["temporal_sd"][
+            LEVELS.index(level)]
+        # Var(count_w) = w·q/E + E[f(1−f)]; 256 px × 40 windows → sd of sd ≈ 1 %
+        assert res.data["temporal_sd"][i] == pytest.approx(res.data["temporal_sd_theory"][i],
+                                                           rel=0.06)
+        assert res.data["temporal_sd_theory"][i] > np.sqrt(50 * q / 20) / 50
+
+
+def test_isi_noise_free_only_floor_and_ceil():
+    res = isi_statistics(MONO, (0.05, 0.35, 0.8), n_readouts=2000, size=(8, 8))
+    d = res.data
+    assert d["clean_fraction"] == [1.0, 1.0, 1.0]
+    for m, mt, v, vt in zip(d["mean"], d["mean_theory"], d["within_var"],
+                            d["within_var_theory"], strict=True):
+        assert m == pytest.approx(mt, rel=2e-3)
+        assert abs(v - vt) < 0.02  # p(1−p), intervals take two values only
+
+
+def test_isi_jitter_broadens_within_pixel_as_predicted():
+    sig = 0.05
+    res = isi_statistics(MONO.replace(noise=only(temporal_threshold_noise=sig)),
+                         (0.02, 0.1, 0.35), n_readouts=4000, size=(8, 8))
+    d = res.data
+    assert d["kappa2"] == pytest.approx(sig**2)
+    for v, vt, n in zip(d["within_var"], d["within_var_theory"],
+                        [r[1] for r in res.tables[0][2]], strict=True):
+        assert vt > 0.2  # above the noise-free p(1−p) ≤ 1/4 … or near it
+        assert v == pytest.approx(vt, rel=4 * np.sqrt(2 / n) + 0.02)
+
+
+def test_isi_fixed_pattern_broadens_pooled_not_within():
+    res = isi_statistics(MONO.replace(noise=only(prnu=0.08)), (0.05,), n_readouts=4000,
+                         size=(8, 8))
+    d = res.data
+    assert d["pooled_var"][0] > 5 * d["within_var"][0]
+    assert d["pooled_var"][0] == pytest.approx(d["pooled_var_theory"][0], rel=0.1)
+    assert d["within_var"][0] < 0.3
+
+
+def test_isi_too_short_capture_raises():
+    with pytest.raises(SpikeSimValueError, match="n_readouts"):
+        isi_statistics(MONO, (0.01,), n_readouts=300, size=(4, 4))
+
+
+def test_snr_noise_free_matches_theory_and_noise_lowers_it():
+    levels = (0.0, 0.02, 0.2, 1.0)
+    clean = snr_curve(MONO, levels, (11, 41), n_readouts=1640, size=(12, 12), tfi_stride=40)
+    d = clean.data
+    for w in (11, 41):
+        for m, t in zip(d[f"tfp_snr_w{w}"][1:], d[f"tfp_snr_theory_w{w}"][1:], strict=True):
+            assert m == pytest.approx(t, rel=0.1)
+    assert d["dark"]["rate_per_readout"] == 0.0
+    assert d["tfi_snr"][2] == pytest.approx(d["tfi_snr_theory"][2], rel=0.1)
+    noisy = snr_curve(MONO.replace(noise=only(shot_noise=True, electrons_per_threshold=10.0,
+                                              dark_current_rel=0.01)),
+                      levels, (11, 41), n_readouts=1640, size=(12, 12), tfi_stride=40)
+    n = noisy.data
+    assert n["dark"]["rate_per_readout"] == pytest.approx(0.006, rel=0.1)
+    assert n["dark"]["model_rate"] == pytest.approx(0.006)
+    for i in (2, 3):
+        assert n["tfp_snr_w41"][i] < d["tfp_snr_w41"][i]
+        assert n["tfp_snr_w41"][i] == pytest.approx(n["tfp_snr_theory_w41"][i], rel=0.1)
+    dr = d["dynamic_range"]
+    # lowest radiance whose theoretical SNR (w = 41, no dark counts) reaches 1
+    expected = min(lv for lv, t in zip(levels, d["tfp_snr_theory_w41"], strict=True)
+                   if lv > 0 and t >= 1)
+    assert dr["i_min"] == expected and dr["i_max"] == 1.0
+    assert dr["db"] == pytest.approx(20 * np.log10(1.0 / expected))
+
+
+def test_bad_sweep_inputs():
+    with pytest.raises(SpikeSimValueError, match="levels"):
+        transfer_curve(MONO, (0.1, -1.0))
+    with pytest.raises(SpikeSimValueError, match="n_readouts"):
+        transfer_curve(MONO, (0.1,), n_readouts=100, window=100)
+    with pytest.raises(SpikeSimValueError, match="windows"):
+        snr_curve(MONO, (0.1,), windows=(0,))
