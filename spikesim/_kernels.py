@@ -139,14 +139,12 @@ def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, 
 
 
 @njit(inline="always", **_opts)
-def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk):
+def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, f):
     """Modulo reset, constant charge < 1 θ: integer add and carry only.
 
-    Works on local copies of the state so the compiler can keep the lanes in
-    vector registers (no aliasing with the output).
+    Works on scratch copies of the state (``qf``, ``f``) so the compiler can
+    keep the lanes in vector registers (no aliasing with the output).
     """
-    qf = np.empty(BLOCK, np.uint64)
-    f = np.empty(BLOCK, np.uint64)
     for lane in range(BLOCK):
         qf[lane] = np.uint64(qconst[lane] * TWO64)
         f[lane] = frac[lane]
@@ -162,13 +160,10 @@ def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk):
 
 
 @njit(inline="always", **_opts)
-def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk):
-    """Modulo reset, no per-readout noise, charge < 1 θ, linear radiance."""
-    f = np.empty(BLOCK, np.uint64)
-    a = np.empty(BLOCK, np.float64)
-    d = np.empty(BLOCK, np.float64)
-    g = np.empty(BLOCK, np.float64)
-    o = np.empty(BLOCK, np.float64)
+def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
+                 f, a, d, g, o):
+    """Modulo reset, no per-readout noise, charge < 1 θ, linear radiance
+    (``f, a, d, g, o``: scratch copies of the lanes, as in :func:`_fast_static`)."""
     for lane in range(BLOCK):
         f[lane] = frac[lane]
         a[lane] = ia[lane]
@@ -264,6 +259,12 @@ def _block_runs(frames, y, x0, width, t_off,
     ia = np.empty(BLOCK, np.float64)
     di = np.empty(BLOCK, np.float64)
     ibuf = np.empty(BLOCK, np.float64)
+    s_u1 = np.empty(BLOCK, np.uint64)
+    s_u2 = np.empty(BLOCK, np.uint64)
+    s_f1 = np.empty(BLOCK, np.float64)
+    s_f2 = np.empty(BLOCK, np.float64)
+    s_f3 = np.empty(BLOCK, np.float64)
+    s_f4 = np.empty(BLOCK, np.float64)
     blk = x0 // BLOCK
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]
@@ -294,9 +295,10 @@ def _block_runs(frames, y, x0, width, t_off,
         if use_fast and static:
             for lane in range(BLOCK):
                 ibuf[lane] = gain[lane] * (ia[lane] + di[lane] * 0.0) + offset[lane]
-            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk)
+            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, s_u1, s_u2)
         elif use_fast:
-            _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk)
+            _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
+                         s_u1, s_f1, s_f2, s_f3, s_f4)
         else:
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
@@ -400,3 +402,38 @@ def splat_flow(flow, select, scale, sign, wsum, vsum):  # pragma: no cover - com
                     wsum[yi, xi] += wt
                     vsum[yi, xi, 0] += wt * sign * fx
                     vsum[yi, xi, 1] += wt * sign * fy
+
+
+@njit(parallel=True, **_opts)
+def mosaic_into(rgb, tile, luma, out):
+    """Sample (H, W, 3) radiance through the CFA into ``out[:, :W]`` in one pass.
+
+    ``tile`` (2, 2) int64 holds the channel of each Bayer phase, or −1 for a
+    monochrome sensor (which sees ``luma``-weighted RGB, summed in float64).
+    Returns the number of values that are NaN, infinite or negative (0 means
+    the input is valid); the caller raises on any.
+    """
+    h = rgb.shape[0]
+    w = rgb.shape[1]
+    bad = 0
+    for y in prange(h):
+        row_bad = 0
+        for x in range(w):
+            for ch in range(3):
+                v = rgb[y, x, ch]
+                row_bad += 0 if (v >= 0.0 and v < np.inf) else 1
+        if tile[0, 0] < 0:
+            for x in range(w):
+                out[y, x] = np.float32(luma[0] * np.float64(rgb[y, x, 0])
+                                       + luma[1] * np.float64(rgb[y, x, 1])
+                                       + luma[2] * np.float64(rgb[y, x, 2]))
+        else:
+            c0 = tile[y & 1, 0]
+            c1 = tile[y & 1, 1]
+            for x in range(0, w - 1, 2):
+                out[y, x] = rgb[y, x, c0]
+                out[y, x + 1] = rgb[y, x + 1, c1]
+            if w & 1:
+                out[y, w - 1] = rgb[y, w - 1, c0]
+        bad += row_bad
+    return bad

@@ -138,11 +138,15 @@ def cfa_after_flip(
 def mosaic(rgb: np.ndarray, cfa: str | None) -> np.ndarray:
     """Sample an (H, W, 3) image through the CFA: (H, W) values the sensor sees.
 
-    Monochrome sensors see Rec. 709 luminance of the linear RGB input.
+    Monochrome sensors see Rec. 709 luminance of the linear RGB input,
+    ``0.2126 R + 0.7152 G + 0.0722 B`` evaluated in float64 in that order and
+    rounded to float32 (exactly what the simulator integrates).
     """
     rgb = np.asarray(rgb)
     h, w = rgb.shape[:2]
     idx = channel_index(cfa, h, w)
     if idx is None:
-        return rgb @ LUMA_WEIGHTS.astype(rgb.dtype)
+        c = rgb.astype(np.float64)
+        wr, wg, wb = LUMA_WEIGHTS
+        return (wr * c[..., 0] + wg * c[..., 1] + wb * c[..., 2]).astype(np.float32)
     return np.take_along_axis(rgb, idx[..., None].astype(np.intp), axis=2)[..., 0]

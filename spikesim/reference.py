@@ -63,7 +63,9 @@ def normal_np(bits: np.ndarray) -> np.ndarray:
 def _sensor_view(rgb: np.ndarray, cfa: str | None) -> np.ndarray:
     rgb = np.asarray(rgb, dtype=np.float32)
     if cfa is None:
-        return (rgb.astype(np.float64) @ _LUMA).astype(np.float32)
+        c = rgb.astype(np.float64)
+        return (_LUMA[0] * c[..., 0] + _LUMA[1] * c[..., 1] + _LUMA[2] * c[..., 2]).astype(
+            np.float32)
     h, w = rgb.shape[:2]
     out = np.empty((h, w), np.float32)
     for dy in range(2):

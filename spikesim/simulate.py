@@ -10,17 +10,16 @@ the key frames it needs, so streams of any length run in bounded memory.
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-import sys
-
 from spikesim import _kernels, rng
 from spikesim._version import __version__
 from spikesim.bits import packed_width, unpack
-from spikesim.cfa import mosaic
+from spikesim.cfa import LUMA_WEIGHTS, channel_index
 from spikesim.errors import SpikeSimTypeError, bad_value
 from spikesim.noise import PaperNoise, PhysicalNoise, fixed_pattern
 from spikesim.scenes.static import validate_radiance
@@ -169,6 +168,8 @@ class SimulationRun:
             chunk_readouts = max(16, min(4096, CHUNK_OUTPUT_BYTES // max(per_readout, 1)))
         self.chunk_readouts = _check_int("chunk_readouts", chunk_readouts, 1)
         self.progress = bool(progress)
+        idx = channel_index(sensor.cfa, 2, 2)
+        self._tile = np.full((2, 2), -1, np.int64) if idx is None else idx.astype(np.int64)
         self.meta = {
             "sensor": sensor.to_dict(),
             "scene": scene.describe(),
@@ -190,12 +191,17 @@ class SimulationRun:
         return self.n_readouts
 
     # -- helpers -----------------------------------------------------------
-    def _sensor_frame(self, t: float) -> np.ndarray:
-        rad = validate_radiance(self.scene.radiance(t), f"scene.radiance(t={t:.6g})")
-        if rad.shape[:2] != self.sensor.shape:
-            raise bad_value(f"scene.radiance(t={t:.6g}).shape", rad.shape,
-                            f"({self.sensor.height}, {self.sensor.width}, 3)")
-        return mosaic(rad, self.sensor.cfa).astype(np.float32, copy=False)
+    def _sensor_frame_into(self, t: float, out: np.ndarray) -> None:
+        """Radiance at ``t`` through the CFA into ``out`` (H, ≥W) float32, validated."""
+        rad = np.asarray(self.scene.radiance(t))
+        name = f"scene.radiance(t={t:.6g})"
+        if rad.shape != (*self.sensor.shape, 3) or rad.dtype.kind != "f":
+            rad = validate_radiance(rad, name)  # converts (H, W) / integer input, or raises
+            if rad.shape[:2] != self.sensor.shape:
+                raise bad_value(f"{name}.shape", rad.shape,
+                                f"({self.sensor.height}, {self.sensor.width}, 3)")
+        if _kernels.mosaic_into(rad, self._tile, LUMA_WEIGHTS, out) > 0:
+            validate_radiance(rad, name)  # raises with the offending value
 
     def _padded(self, arr: np.ndarray, fill: float, dtype) -> np.ndarray:
         h, w = arr.shape
@@ -263,12 +269,13 @@ class SimulationRun:
                 frames = np.zeros((len(times), h, wp), np.float32)
                 new_cache = {}
                 for i, t in enumerate(times.tolist()):
-                    frame = cache.get(t)
-                    if frame is None:
-                        frame = self._sensor_frame(t)
-                    frames[i, :, :w] = frame
-                    new_cache[t] = frame
-                cache = {times[-1].item(): new_cache[times[-1].item()]}
+                    if t in cache:
+                        frames[i] = cache[t]
+                    else:
+                        self._sensor_frame_into(t, frames[i])
+                    new_cache[t] = frames[i]
+                last = times[-1].item()
+                cache = {last: new_cache[last].copy()}
                 sched = build_schedule(tau, n0, n1)
                 # rows padded to whole 64-bit words; the kernel writes every word
                 out = np.empty((n1 - n0, h, wp // 64), np.uint64)
