@@ -266,16 +266,14 @@ class SimulationRun:
                     n1 = n0 + max(1, (n1 - n0) // 2)
                     times = np.asarray(self.scene.key_times(n0 / clock, n1 / clock), np.float64)
                     tau = key_readout_times(times, clock)
-                frames = np.zeros((len(times), h, wp), np.float32)
-                new_cache = {}
+                frames = np.zeros((len(times), h, wp), np.float32)  # padding lanes stay 0
                 for i, t in enumerate(times.tolist()):
                     if t in cache:
                         frames[i] = cache[t]
                     else:
                         self._sensor_frame_into(t, frames[i])
-                    new_cache[t] = frames[i]
-                last = times[-1].item()
-                cache = {last: new_cache[last].copy()}
+                # the next chunk starts at this chunk's last key frame
+                cache = {times[-1].item(): frames[-1].copy()}
                 sched = build_schedule(tau, n0, n1)
                 # rows padded to whole 64-bit words; the kernel writes every word
                 out = np.empty((n1 - n0, h, wp // 64), np.uint64)
