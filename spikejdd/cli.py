@@ -3,11 +3,14 @@
 ``spikejdd evaluate --data DIR --methods a,b,c [--out STEM]``
 ``spikejdd evaluate --sweep [--methods ...] [--size 64x96] [--out STEM]``
 ``spikejdd methods``
+``spikejdd train --data DIR [--config run.json] [--model lite] [--steps N] ...``
+``spikejdd reconstruct INPUT --method sjdd --out DIR`` (HDF5 or ``.dat``; sRGB PNGs)
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
 
@@ -42,7 +45,55 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", default="evaluation", help="output path stem (.json/.md/.png)")
     ev.add_argument("--quiet", action="store_true", help="no progress bars")
     sub.add_parser("methods", help="list reconstruction methods")
+    _train_parser(sub)
+    _reconstruct_parser(sub)
     return p
+
+
+def _train_parser(sub) -> None:
+    # defaults live in spikejdd.train.TrainConfig (not imported here: torch loads lazily)
+    tr = sub.add_parser("train", help="train SJDD-Net on spikesim HDF5 data")
+    tr.add_argument("--data", help="training HDF5 file or folder")
+    tr.add_argument("--config", help="JSON file of TrainConfig keys (flags given override it)")
+    tr.add_argument("--out", help="run folder (default runs/sjdd)")
+    tr.add_argument("--eval-data", help="evaluation HDF5 file or folder (default: --data)")
+    tr.add_argument("--model", help="preset: default (published widths), lite, published")
+    tr.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a model field, e.g. --set stages=2 (JSON values)")
+    for name, typ, default in (
+            ("steps", int, 10_000), ("batch_size", int, 8), ("crop", int, 64), ("lr", float, 5e-4),
+            ("lr_step", int, 2_000), ("gamma", float, 0.8), ("noise_weight", float, 0.0),
+            ("eval_every", int, 500), ("eval_frames", int, 12), ("checkpoint_every", int, 500),
+            ("seed", int, 0), ("workers", int, 0), ("time_limit_min", float, None),
+            ("threads", int, None)):
+        tr.add_argument("--" + name.replace("_", "-"), type=typ, dest=name,
+                        help=f"default {default}")
+    tr.add_argument("--device", help="auto (default), cpu, cuda, cuda:1")
+    tr.add_argument("--no-amp", action="store_true", help="no mixed precision on CUDA")
+    tr.add_argument("--no-flips", action="store_true", help="no random flips")
+    tr.add_argument("--resume", help="checkpoint to resume from, or 'auto' (<out>/last.pt)")
+    tr.add_argument("--synthesize", type=int, metavar="N",
+                    help="first write N procedural sequences into --data (when it has none)")
+    tr.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _reconstruct_parser(sub) -> None:
+    rc = sub.add_parser("reconstruct", help="reconstruct frames of an HDF5 or .dat stream")
+    rc.add_argument("input", help="spikesim .h5 file or PKU .dat capture")
+    rc.add_argument("--method", default="sjdd", help="method name (default sjdd)")
+    rc.add_argument("--out", required=True, help="output folder for PNGs")
+    rc.add_argument("--weights", help="sjdd weights: a shipped name or a checkpoint path")
+    rc.add_argument("--centers", help="readouts to reconstruct, e.g. 19,59 or 19:200:20 "
+                                      "(default: GT readouts for .h5, the middle for .dat)")
+    rc.add_argument("--context", type=int, default=41, help="readouts given to the method")
+    rc.add_argument("--cfa", help="Bayer pattern (default: from the file; RGGB for .dat)")
+    rc.add_argument("--height", type=int, help=".dat frame height (default 250)")
+    rc.add_argument("--width", type=int, help=".dat stored width (default 400)")
+    rc.add_argument("--head-columns", type=int, default=0, help=".dat head columns to drop")
+    rc.add_argument("--no-flip", action="store_true",
+                    help=".dat stored top-down (default: upside down, PKU convention)")
+    rc.add_argument("--rate", type=float, help="full_scale_rate (default: file's, or 0.6)")
+    rc.add_argument("--device", default="cpu", help="torch device for learned methods")
 
 
 def _evaluate(args) -> int:
@@ -61,7 +112,7 @@ def _evaluate(args) -> int:
     else:
         frames = evaluate.frames_from_dataset(args.data, args.context, args.per_sequence)
         result = evaluate.run(frames, methods, repeats=args.repeats, progress=not args.quiet)
-    command = "spikejdd " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    command = "spikejdd " + " ".join(shlex.quote(a) for a in args.argv)
     paths = evaluate.write_report(result, methods, args.out, command=command)
     for m in methods:
         e = result["summary"][m]["all"]
@@ -72,12 +123,136 @@ def _evaluate(args) -> int:
     return 0
 
 
+def _train(args) -> int:
+    import json
+    from pathlib import Path
+
+    from spikejdd.train import TrainConfig, synthesize, train
+
+    cfg = {}
+    if args.config:
+        cfg = json.loads(Path(args.config).read_text())
+    for name in ("data", "out", "eval_data", "model", "steps", "batch_size", "crop", "lr",
+                 "lr_step", "gamma", "noise_weight", "eval_every", "eval_frames",
+                 "checkpoint_every", "seed", "workers", "time_limit_min", "device", "resume",
+                 "threads"):
+        v = getattr(args, name, None)
+        if v is not None:
+            cfg[name] = v
+    overrides = dict(cfg.get("model_overrides", {}))
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep:
+            print(f"spikejdd train: --set {item!r}: expected FIELD=VALUE", file=sys.stderr)
+            return 2
+        try:
+            overrides[key.strip()] = json.loads(value)
+        except json.JSONDecodeError:
+            overrides[key.strip()] = value
+    if overrides:
+        cfg["model_overrides"] = overrides
+    if args.no_amp:
+        cfg["amp"] = False
+    if args.no_flips:
+        cfg["flips"] = False
+    if args.quiet:
+        cfg["progress"] = False
+    if not cfg.get("data"):
+        print("spikejdd train: give --data DIR (or a --config with 'data')", file=sys.stderr)
+        return 2
+    if args.synthesize:
+        data = Path(cfg["data"])
+        if not (data.is_dir() and any(data.glob("*.h5"))):
+            synthesize(data, n_sequences=args.synthesize, progress=not args.quiet)
+    summary = train(TrainConfig.from_dict(cfg))
+    if os.environ.get("RANK", "0") != "0":
+        return 0
+    print(f"trained {summary['steps_done']} steps in {summary['minutes']:.1f} min; "
+          f"best eval PSNR {summary['best_psnr']:.2f} dB; run folder {cfg.get('out', 'runs/sjdd')}")
+    return 0
+
+
+def _centers(text: str | None, default: list[int]) -> list[int]:
+    if not text:
+        return default
+    try:
+        if ":" in text:
+            parts = [int(v) if v else None for v in text.split(":")]
+            return list(range(*[p for p in parts if p is not None]))
+        return [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--centers {text!r}: expected 19,59 or start:stop:step") \
+            from None
+
+
+def _reconstruct(args) -> int:
+    from pathlib import Path
+
+    import numpy as np
+
+    from spikejdd.metrics import srgb_encode
+    from spikejdd.registry import reconstruct
+    from spikesim.estimate import window_bounds
+
+    src = Path(args.input)
+    out = Path(args.out)
+    options = {}
+    if args.method.strip().lower() == "sjdd":
+        options = {"device": args.device}
+        if args.weights:
+            options["weights"] = args.weights
+    if src.suffix.lower() == ".dat":
+        from spikejdd.capture import Capture
+
+        cap = Capture(src, args.height or 250, args.width or 400, cfa=args.cfa or "RGGB",
+                      flip=not args.no_flip, head_columns=args.head_columns)
+        n, cfa, rate = cap.n_readouts, cap.cfa, args.rate or 0.6
+        centers = _centers(args.centers, [n // 2])
+
+        def window(c):
+            return cap.window(c, min(args.context, n))[0]
+    else:
+        from spikesim.io import open_h5
+
+        seq = open_h5(src)
+        n = seq.n_readouts
+        cfa = args.cfa or seq.cfa
+        rate = args.rate or float((seq.meta.get("sensor") or {}).get("full_scale_rate", 0.6))
+        centers = _centers(args.centers, [int(g) for g in seq.gt_index] or [n // 2])
+
+        def window(c):
+            start, _ = window_bounds(n, c, min(args.context, n))
+            return seq.read_window(start, min(args.context, n))
+    import cv2
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for c in centers:
+        length = min(args.context, n)
+        start, _ = window_bounds(n, c, length)
+        rgb = reconstruct(window(c), cfa=cfa, method=args.method, center=c - start, rate=rate,
+                          **options)
+        img = (np.clip(srgb_encode(np.clip(rgb, 0, 1)), 0, 1) * 255 + 0.5).astype(np.uint8)
+        path = out / f"{src.stem}_{args.method.replace('+', '_')}_{c:06d}.png"
+        if not cv2.imwrite(str(path), img[..., ::-1]):
+            raise OSError(f"could not write {path}")
+        written.append(path)
+    print(f"wrote {len(written)} sRGB PNG(s) to {out}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
+    args.argv = argv  # recorded in reports as the command that made them
     try:
         if args.command == "evaluate":
             return _evaluate(args)
+        if args.command == "train":
+            return _train(args)
+        if args.command == "reconstruct":
+            return _reconstruct(args)
         if args.command == "methods":
             from spikejdd import list_methods
 
