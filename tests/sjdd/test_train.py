@@ -1,0 +1,184 @@
+"""Training: synthesised data, the noise-map target, resume equivalence, the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+import spikejdd as sj
+from spikejdd.cli import main
+from spikejdd.models import SJDDNet, load_checkpoint, load_model, save_checkpoint
+from spikejdd.train import EpochSampler, TrainConfig, noise_map_target, synthesize, train
+from spikesim.errors import SpikeSimValueError
+
+from .conftest import TINY
+
+
+@pytest.fixture(scope="module")
+def tiny_data(tmp_path_factory):
+    root = tmp_path_factory.mktemp("sjdd_data")
+    info = synthesize(root, n_sequences=2, sizes=((16, 20),), n_readouts=21, gt_every=3,
+                      window=TINY.n_readouts, seed=5, progress=False)
+    return root, info
+
+
+def _cfg(data, out, **kw):
+    base = dict(data=str(data), out=str(out), model="lite", model_overrides=TINY.to_dict(),
+                steps=7, batch_size=2, crop=12, lr=1e-3, lr_step=3, gamma=0.5,
+                noise_weight=0.1, eval_every=100, eval_frames=2, checkpoint_every=100,
+                progress=False, seed=11)
+    base.update(kw)
+    return TrainConfig.from_dict(base)
+
+
+def test_synthesized_set_is_described(tiny_data):
+    root, info = tiny_data
+    assert len(info["sequences"]) == 2
+    assert info["sequences"][0]["sigma_p"] == 0.0  # GN
+    assert 0 <= info["sequences"][1]["sigma_p"] <= 5  # GPN
+    assert {s["picture"] for s in info["sequences"]} <= set(info["pictures"])
+    assert not {"astronaut", "coffee", "chelsea"} & set(info["pictures"])
+    assert json.loads((root / "synth.json").read_text())["seed"] == 5
+
+
+def test_noise_map_target():
+    gt = torch.full((2, 3, 2, 2), 0.5)
+    t = noise_map_target({"sigma_g": torch.tensor([10.0, 3.0]),
+                          "sigma_p": torch.tensor([0.0, 2.0])}, gt)
+    torch.testing.assert_close(t[0], torch.full((1, 2, 2), 10.0 / 255))
+    torch.testing.assert_close(t[1], torch.full((1, 2, 2), float(np.sqrt(9 + 4 * 127.5) / 255)))
+
+
+def test_epoch_sampler_is_deterministic_and_splits_ranks():
+    a = EpochSampler(10, seed=1, epoch=2).indices
+    assert a == EpochSampler(10, seed=1, epoch=2).indices
+    assert a != EpochSampler(10, seed=1, epoch=3).indices
+    r0, r1 = EpochSampler(10, 1, 2, 0, 2).indices, EpochSampler(10, 1, 2, 1, 2).indices
+    assert sorted(r0 + r1) == sorted(a) and not set(r0) & set(r1)
+    assert EpochSampler(10, 1, 2, skip=4).indices == a[4:]
+
+
+def test_resume_reproduces_an_uninterrupted_run(tiny_data, tmp_path):
+    root, _ = tiny_data
+    full = train(_cfg(root, tmp_path / "full"))
+    assert full["steps_done"] == 7
+    train(_cfg(root, tmp_path / "split", steps=3))
+    part = load_checkpoint(tmp_path / "split" / "last.pt")
+    assert part["train"]["step"] == 3
+    resumed = train(_cfg(root, tmp_path / "split", resume="auto"))
+    assert resumed["steps_done"] == 7
+    a = load_checkpoint(tmp_path / "full" / "last.pt")["state_dict"]
+    b = load_checkpoint(tmp_path / "split" / "last.pt")["state_dict"]
+    assert a.keys() == b.keys()
+    for k in a:
+        torch.testing.assert_close(a[k], b[k], rtol=0, atol=0, msg=k)
+    run = json.loads((tmp_path / "full" / "run.json").read_text())
+    assert run["seed"] == 11 and run["data"]["sequences"] == 2
+    assert "synthesis" in run["data"] and run["history"]
+    blob = load_checkpoint(tmp_path / "full" / "best.pt")
+    assert blob["seed"] == 11 and "psnr_linear" in blob["eval"]
+
+
+def test_resume_with_another_model_is_refused(tiny_data, tmp_path):
+    root, _ = tiny_data
+    train(_cfg(root, tmp_path / "r", steps=1))
+    other = dict(TINY.to_dict(), stages=2)
+    with pytest.raises(SpikeSimValueError, match="same model configuration"):
+        train(_cfg(root, tmp_path / "r", resume="auto", model_overrides=other))
+
+
+def test_bad_train_config():
+    with pytest.raises(SpikeSimValueError, match="data"):
+        TrainConfig().validate()
+    with pytest.raises(SpikeSimValueError, match="train config keys"):
+        TrainConfig.from_dict({"data": "x", "learning_rate": 1})
+    with pytest.raises(SpikeSimValueError, match="model"):
+        TrainConfig(data="x", model="huge").model_config()
+
+
+def test_cli_train_and_reconstruct(tiny_data, tmp_path, capsys):
+    root, _ = tiny_data
+    cfg = tmp_path / "run.json"
+    cfg.write_text(json.dumps({"model": "lite", "model_overrides": TINY.to_dict(),
+                               "steps": 2, "batch_size": 2, "crop": 12, "eval_frames": 1}))
+    out = tmp_path / "run"
+    assert main(["train", "--data", str(root), "--config", str(cfg), "--out", str(out),
+                 "--set", "stages=2", "--quiet"]) == 0
+    assert "trained 2 steps" in capsys.readouterr().out
+    weights = out / "last.pt"
+    assert load_model(weights).config.stages == 2
+    # reconstruct an HDF5 sequence (its GT readouts) and a .dat capture
+    pngs = tmp_path / "png"
+    h5 = sorted(root.glob("*.h5"))[0]
+    assert main(["reconstruct", str(h5), "--method", "sjdd", "--weights", str(weights),
+                 "--out", str(pngs), "--context", "11"]) == 0
+    import cv2
+
+    files = sorted(pngs.glob("*.png"))
+    assert len(files) == 5
+    img = cv2.imread(str(files[0]))
+    assert img.shape == (16, 20, 3) and img.dtype == np.uint8
+    import spikesim as ss
+
+    spikes = ss.io.open_h5(h5).read_window(0, 21)
+    dat = tmp_path / "cap.dat"
+    ss.io.write_dat(dat, spikes, flip=True)
+    assert main(["reconstruct", str(dat), "--method", "sjdd", "--weights", str(weights),
+                 "--out", str(tmp_path / "dat"), "--height", "16", "--width", "20",
+                 "--cfa", "RGGB", "--centers", "5,10"]) == 0
+    assert len(list((tmp_path / "dat").glob("*.png"))) == 2
+    # classical methods go through the same command
+    assert main(["reconstruct", str(dat), "--method", "tfp11+bilinear", "--out",
+                 str(tmp_path / "dat2"), "--height", "16", "--width", "20"]) == 0
+
+
+def test_registered_method_runs_through_reconstruct(tmp_path):
+    torch.manual_seed(0)
+    path = save_checkpoint(tmp_path / "t.pt", SJDDNet(TINY))
+    rng = np.random.default_rng(0)
+    spikes = (rng.random((15, 10, 12)) < 0.4).astype(np.uint8)
+    out = sj.reconstruct(spikes, cfa="GRBG", method="sjdd", center=7, weights=str(path))
+    assert out.shape == (10, 12, 3) and out.min() >= 0 and out.max() <= 1
+    assert "sjdd" in sj.list_methods()
+    with pytest.raises(SpikeSimValueError, match="at least 9 readouts"):
+        sj.reconstruct(spikes[:5], cfa="RGGB", method="sjdd", center=2, weights=str(path))
+    with pytest.raises(SpikeSimValueError, match="Bayer"):
+        sj.reconstruct(spikes, cfa=None, method="sjdd", center=7, weights=str(path))
+
+
+def test_cli_help_states_the_trainconfig_defaults(capsys):
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    d = TrainConfig()
+    for name in ("steps", "batch_size", "crop", "lr", "lr_step", "gamma", "noise_weight",
+                 "eval_every", "eval_frames", "checkpoint_every", "seed", "workers"):
+        flag = "--" + name.replace("_", "-")
+        assert f"{flag} {name.upper()} default {getattr(d, name)}" in text, name
+
+
+@pytest.mark.slow
+def test_torchrun_two_cpu_processes(tiny_data, tmp_path):
+    """DDP through torch's launcher: two gloo processes on the CPU train together."""
+    import os
+    import subprocess
+    import sys
+
+    root, _ = tiny_data
+    cfg = tmp_path / "cfg.json"
+    cfg.write_text(json.dumps({"model": "lite", "model_overrides": TINY.to_dict(), "steps": 2,
+                               "batch_size": 2, "crop": 12, "eval_frames": 1, "threads": 1,
+                               "time_limit_min": 10}))
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    proc = subprocess.run(
+        [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2",
+         "--master_port", "29531", "-m", "spikejdd.cli", "train", "--data", str(root),
+         "--config", str(cfg), "--out", str(tmp_path / "run"), "--quiet"],
+        capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert run["world_size"] == 2 and run["steps_done"] == 2
+    assert proc.stdout.count("trained 2 steps") == 1  # only rank 0 reports
