@@ -1,6 +1,6 @@
 import sys
 from pathlib import Path
 
-# make tests/fixture_paths.py and tests/core/core_helpers.py importable as plain modules
-sys.path.insert(0, str(Path(__file__).parent))
+# make tests/core/core_helpers.py and tests/core/fixture_paths.py importable as plain
+# modules (only this folder: a folder named like a package would shadow it)
 sys.path.insert(0, str(Path(__file__).parent / "core"))

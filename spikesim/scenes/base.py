@@ -20,6 +20,7 @@ nominally 0..1 per channel (DESIGN.md §2).  The simulator asks a scene for
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 
 import numpy as np
 
@@ -37,7 +38,7 @@ def uniform_key_times(start_s: float, stop_s: float, interval_s: float) -> np.nd
     return np.arange(first, last + 1, dtype=np.float64) * interval_s
 
 
-class Scene:
+class Scene(ABC):
     """Base class of scenes; subclasses implement ``radiance`` and ``describe``."""
 
     height: int
@@ -50,11 +51,13 @@ class Scene:
     def is_static(self) -> bool:
         return self.key_interval_s is None
 
-    def radiance(self, t: float) -> np.ndarray:  # pragma: no cover - interface
-        raise NotImplementedError
+    @abstractmethod
+    def radiance(self, t: float) -> np.ndarray:
+        """(H, W, 3) float32 linear radiance at time ``t`` seconds."""
 
-    def describe(self) -> dict:  # pragma: no cover - interface
-        raise NotImplementedError
+    @abstractmethod
+    def describe(self) -> dict:
+        """A JSON-able record of what the scene is."""
 
     def key_times(self, start_s: float, stop_s: float) -> np.ndarray:
         if self.key_interval_s is None:

@@ -3,7 +3,7 @@
 from pathlib import Path
 
 _CANDIDATES = (
-    Path(__file__).resolve().parents[2] / "shared" / "fixtures",
+    Path(__file__).resolve().parents[3] / "shared" / "fixtures",
     Path("/work/shared/fixtures"),
 )
 FIXTURES = next((p for p in _CANDIDATES if p.is_dir()), _CANDIDATES[0])
