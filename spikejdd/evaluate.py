@@ -110,8 +110,13 @@ def _time_call(fn, repeats: int):
     return out, float(np.median(times))
 
 
-def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: bool = True) -> dict:
-    """Score and time every method on every frame; see the module doc for the timing rule."""
+def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: bool = True,
+        outputs: dict | None = None) -> dict:
+    """Score and time every method on every frame; see the module doc for the timing rule.
+
+    When ``outputs`` is a dict it receives each reconstruction under
+    ``(method, frame index)`` (for image panels, without reconstructing again).
+    """
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise bad_value("repeats", repeats, "an integer >= 1")
     if not frames:
@@ -122,9 +127,11 @@ def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: boo
     for m, fn in fns.items():
         f0 = frames[0]
         fn(f0.spikes, f0.cfa, f0.center, rate=f0.rate)  # warm-up, not timed
-        for f in frames:
+        for i, f in enumerate(frames):
             out, sec = _time_call(lambda f=f, fn=fn: fn(f.spikes, f.cfa, f.center, rate=f.rate),
                                   repeats)
+            if outputs is not None:
+                outputs[(m, i)] = out
             rows.append({"method": m, "sequence": f.sequence, "readout": f.readout,
                          **f.group, "seconds": sec, **score(out, f.gt)})
             bar.update()

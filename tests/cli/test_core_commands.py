@@ -33,7 +33,7 @@ def test_demo_runs_end_to_end_small(tmp_path, capsys):
         assert 0.0 < item["firing_rate"] < 0.6
         assert item["noise"] in ("GN", "GPN")
     rec = summary["reconstruction"]
-    assert rec and rec["frames"] == 9
+    assert rec and rec["frames"] == 3
     for m in rec["methods"]:
         assert 15 < rec["summary"][m]["all"]["PSNR[linear]"] < 60
         assert m in report
