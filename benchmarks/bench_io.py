@@ -17,6 +17,7 @@ Writes ``benchmarks/results/io.json`` and ``benchmarks/results/io.md``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
@@ -208,12 +209,10 @@ def main() -> None:
                         "hdf5plugin": have_hdf5plugin()},
             "readouts": args.readouts, "size": args.size, "compression": [], "chunks": [],
         }
-        try:
+        with contextlib.suppress(OSError, StopIteration):  # CPU name where Linux tells it
             res["machine"]["cpu"] = next(
                 line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
                 if line.startswith("model name"))
-        except (OSError, StopIteration):
-            pass
         for label, sigma in (("ideal", 0.0), ("paper σg=10", 10.0)):
             stream = simulate(args.readouts, sigma, args.size)
             res["packed_MB"] = stream.packed.nbytes / 1e6

@@ -49,13 +49,14 @@ def _available_methods() -> list[str]:
         import spikejdd
     except ImportError:
         return []
+    from spikesim.errors import SpikeSimError
+
     methods = list(DEMO_METHODS)
     try:
         spikejdd.registry.get_method("sjdd")
-        methods.append("sjdd")
-    except Exception:  # noqa: BLE001 - no shipped weights / models yet: classical only
-        pass
-    return methods
+    except (SpikeSimError, ImportError):  # no model package or weights: classical only
+        return methods
+    return [*methods, "sjdd"]
 
 
 def run_demo(out_dir: str | Path = "demo_out", size: int | None = None,

@@ -24,6 +24,7 @@ largest content speed in pixels per second; nothing then moves more than
 from __future__ import annotations
 
 import math
+from abc import abstractmethod
 
 import numpy as np
 from scipy import ndimage
@@ -112,8 +113,9 @@ class ProceduralScene(Scene):
         self.speed = speed
         self.key_interval_s = None if speed is None else self.max_px / speed
 
-    def _render(self, t: float) -> np.ndarray:  # pragma: no cover - interface
-        raise NotImplementedError
+    @abstractmethod
+    def _render(self, t: float) -> np.ndarray:
+        """(H, W, 3) float32 radiance at ``t`` seconds before exposure scaling."""
 
     def _options(self) -> dict:
         return {}

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 import re
+from abc import ABC, abstractmethod
 from pathlib import Path
 
 import cv2
@@ -47,7 +48,7 @@ def _natural_key(name: str) -> list:
     return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", name)]
 
 
-class FrameSource:
+class FrameSource(ABC):
     """Interface: ``n_frames``, ``height``, ``width``, ``native_fps`` (or None), ``read(i)``."""
 
     n_frames: int
@@ -60,8 +61,9 @@ class FrameSource:
     def __init__(self) -> None:
         self.n_decoded = 0
 
-    def read(self, index: int) -> np.ndarray:  # pragma: no cover - interface
-        raise NotImplementedError
+    @abstractmethod
+    def read(self, index: int) -> np.ndarray:
+        """Frame ``index`` as decoded (H, W, 3) array."""
 
     def _check_index(self, index: int) -> int:
         if not 0 <= index < self.n_frames:
