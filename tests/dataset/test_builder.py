@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import textwrap
 from pathlib import Path
 
@@ -100,6 +101,7 @@ def test_serial_pool_and_dask_give_identical_files(tmp_path):
 
 FACTORY = textwrap.dedent(
     """
+    import multiprocessing
     import os
     from pathlib import Path
     import numpy as np
@@ -109,7 +111,9 @@ FACTORY = textwrap.dedent(
 
     class Killer(Static):
         def radiance(self, t):
-            if not MARKER.exists():
+            # only ever kill a worker process, never the process running the tests
+            in_worker = multiprocessing.parent_process() is not None
+            if in_worker and not MARKER.exists():
                 MARKER.write_text("killed once")
                 os._exit(3)   # the worker dies mid-sequence, its file half written
             return super().radiance(t)
@@ -131,7 +135,10 @@ def factory_module(tmp_path, monkeypatch):
     mod.mkdir()
     (mod / "inject_scenes.py").write_text(FACTORY)
     monkeypatch.syspath_prepend(str(mod))
-    return mod
+    # a module imported by an earlier test (from its own tmp_path) must not be reused
+    monkeypatch.delitem(sys.modules, "inject_scenes", raising=False)
+    yield mod
+    sys.modules.pop("inject_scenes", None)
 
 
 def _py_source(mode, count=4):
