@@ -41,7 +41,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from spikesim.rng import normal, pixel_bits, readout_key, uniform
+from spikesim._simd import carry_add64, linear_carry_add64
+from spikesim.rng import normal, normals_into, pixel_bits, readout_key, uniform
 
 BLOCK = 64  # pixels per block: one uint64 spike mask = 8 packed bytes
 TWO64 = 2.0**64
@@ -140,21 +141,16 @@ def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, 
 
 @njit(inline="always", **_opts)
 def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, f):
-    """Modulo reset, constant charge < 1 θ: integer add and carry only.
+    """Modulo reset, constant charge < 1 θ: a 64-lane integer add whose carry
+    bits are the spikes (:func:`spikesim._simd.carry_add64`).
 
-    Works on scratch copies of the state (``qf``, ``f``) so the compiler can
-    keep the lanes in vector registers (no aliasing with the output).
+    Works on scratch copies of the state (``qf``, ``f``, contiguous).
     """
     for lane in range(BLOCK):
         qf[lane] = np.uint64(qconst[lane] * TWO64)
         f[lane] = frac[lane]
     for n in range(n0, n1):
-        m = np.uint64(0)
-        for lane in range(BLOCK):
-            s = f[lane] + qf[lane]
-            m |= np.uint64(s < f[lane]) << np.uint64(lane)
-            f[lane] = s
-        out[n - t_off, y, blk] = m
+        out[n - t_off, y, blk] = carry_add64(f, qf, 0)
     for lane in range(BLOCK):
         frac[lane] = f[lane]
 
@@ -162,8 +158,9 @@ def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, f):
 @njit(inline="always", **_opts)
 def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
                  f, a, d, g, o):
-    """Modulo reset, no per-readout noise, charge < 1 θ, linear radiance
-    (``f, a, d, g, o``: scratch copies of the lanes, as in :func:`_fast_static`)."""
+    """Modulo reset, no per-readout noise, charge < 1 θ, linear radiance: one
+    vector step per readout (:func:`spikesim._simd.linear_carry_add64`) on
+    contiguous scratch copies of the lanes (``f, a, d, g, o``)."""
     for lane in range(BLOCK):
         f[lane] = frac[lane]
         a[lane] = ia[lane]
@@ -172,41 +169,34 @@ def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, 
         o[lane] = offset[lane]
     for n in range(n0, n1):
         phi = (np.float64(n) + 0.5 - t_a) * inv_span
-        m = np.uint64(0)
-        for lane in range(BLOCK):
-            q = g[lane] * (a[lane] + d[lane] * phi) + o[lane]
-            s = f[lane] + np.uint64(q * TWO64)
-            m |= np.uint64(s < f[lane]) << np.uint64(lane)
-            f[lane] = s
-        out[n - t_off, y, blk] = m
+        out[n - t_off, y, blk] = linear_carry_add64(f, a, d, g, o, phi, 0)
     for lane in range(BLOCK):
         frac[lane] = f[lane]
 
 
 @njit(inline="always", **_opts)
 def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
-                  paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter):
+                  paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf):
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
-    with the charge.  Each stage is a separate loop over the 64 lanes so the
+    with the charge; ``zbuf`` is scratch for the lanes' normal deviates.  Each stage is a separate loop over the 64 lanes so the
     stages without data-dependent control flow vectorise; padding lanes
     (x ≥ width) have zero gain and offset, so they never fire whatever noise
     is drawn for them.
     """
     pix0 = np.uint64(y * width + x0)
     if paper_sg2 > 0.0 or paper_sp2 > 0.0:
-        rk = readout_key(key_paper, n)
+        normals_into(readout_key(key_paper, n), pix0, zbuf)
         if paper_sp2 > 0.0:
             for lane in range(BLOCK):
                 level = ibuf[lane]
                 sd = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * level) * (1.0 / 255.0)
-                ibuf[lane] = max(level + sd * normal(pixel_bits(rk, pix0 + np.uint64(lane))), 0.0)
+                ibuf[lane] = max(level + sd * zbuf[lane], 0.0)
         else:
             sd = np.sqrt(paper_sg2) * (1.0 / 255.0)
             for lane in range(BLOCK):
-                level = ibuf[lane] + sd * normal(pixel_bits(rk, pix0 + np.uint64(lane)))
-                ibuf[lane] = max(level, 0.0)
+                ibuf[lane] = max(ibuf[lane] + sd * zbuf[lane], 0.0)
     for lane in range(BLOCK):
         ibuf[lane] = gain[lane] * ibuf[lane] + offset[lane]
     if electrons[0] >= 0.0:
@@ -265,6 +255,7 @@ def _block_runs(frames, y, x0, width, t_off,
     s_f2 = np.empty(BLOCK, np.float64)
     s_f3 = np.empty(BLOCK, np.float64)
     s_f4 = np.empty(BLOCK, np.float64)
+    zbuf = np.empty(BLOCK, np.float64)
     blk = x0 // BLOCK
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]
@@ -274,7 +265,7 @@ def _block_runs(frames, y, x0, width, t_off,
                              piece_phi, y, x0, ibuf)
             m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                               reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                              key_jitter)
+                              key_jitter, zbuf)
             out[n0 - t_off, y, blk] = m
             continue
         t_a = run_ta[r]
@@ -283,15 +274,19 @@ def _block_runs(frames, y, x0, width, t_off,
         use_fast = fast_ok
         static = True
         if use_fast:
+            # branch-free counts, so this check vectorises like the step itself
             phi_first = (np.float64(n0) + 0.5 - t_a) * inv
             phi_last = (np.float64(n1 - 1) + 0.5 - t_a) * inv
+            moving = 0
+            too_big = 0
             for lane in range(BLOCK):
-                if di[lane] != 0.0:
-                    static = False
-                q1 = gain[lane] * (ia[lane] + di[lane] * phi_first) + offset[lane]
-                q2 = gain[lane] * (ia[lane] + di[lane] * phi_last) + offset[lane]
-                if not (q1 < FAST_Q_LIMIT and q2 < FAST_Q_LIMIT):
-                    use_fast = False
+                d = di[lane]
+                q1 = gain[lane] * (ia[lane] + d * phi_first) + offset[lane]
+                q2 = gain[lane] * (ia[lane] + d * phi_last) + offset[lane]
+                moving += 0 if d == 0.0 else 1
+                too_big += 0 if (q1 < FAST_Q_LIMIT) & (q2 < FAST_Q_LIMIT) else 1
+            static = moving == 0
+            use_fast = too_big == 0
         if use_fast and static:
             for lane in range(BLOCK):
                 ibuf[lane] = gain[lane] * (ia[lane] + di[lane] * 0.0) + offset[lane]
@@ -306,7 +301,7 @@ def _block_runs(frames, y, x0, width, t_off,
                     ibuf[lane] = ia[lane] + di[lane] * phi
                 m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                                   reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                                  key_jitter)
+                                  key_jitter, zbuf)
                 out[n - t_off, y, blk] = m
 
 
@@ -408,32 +403,33 @@ def splat_flow(flow, select, scale, sign, wsum, vsum):  # pragma: no cover - com
 def mosaic_into(rgb, tile, luma, out):
     """Sample (H, W, 3) radiance through the CFA into ``out[:, :W]`` in one pass.
 
-    ``tile`` (2, 2) int64 holds the channel of each Bayer phase, or −1 for a
-    monochrome sensor (which sees ``luma``-weighted RGB, summed in float64).
-    Returns the number of values that are NaN, infinite or negative (0 means
-    the input is valid); the caller raises on any.
+    ``rgb`` must be C-contiguous (each row is read as one flat run of 3·W
+    values, which keeps both loops vectorised).  ``tile`` (2, 2) int64 holds
+    the channel of each Bayer phase, or −1 for a monochrome sensor (which sees
+    ``luma``-weighted RGB, summed in float64).  Returns the number of values
+    that are NaN, infinite or negative (0 means the input is valid); the
+    caller raises on any.
     """
     h = rgb.shape[0]
     w = rgb.shape[1]
+    flat = rgb.reshape(h, 3 * w)
     bad = 0
     for y in prange(h):
+        row = flat[y]
         row_bad = 0
-        for x in range(w):
-            for ch in range(3):
-                v = rgb[y, x, ch]
-                row_bad += 0 if (v >= 0.0 and v < np.inf) else 1
+        for i in range(3 * w):
+            v = row[i]
+            ok = (v >= 0.0) & (v * 0.0 == 0.0)  # v·0 is NaN for NaN and ±inf
+            row_bad += 0 if ok else 1
         if tile[0, 0] < 0:
             for x in range(w):
-                out[y, x] = np.float32(luma[0] * np.float64(rgb[y, x, 0])
-                                       + luma[1] * np.float64(rgb[y, x, 1])
-                                       + luma[2] * np.float64(rgb[y, x, 2]))
+                out[y, x] = np.float32(luma[0] * np.float64(row[3 * x])
+                                       + luma[1] * np.float64(row[3 * x + 1])
+                                       + luma[2] * np.float64(row[3 * x + 2]))
         else:
             c0 = tile[y & 1, 0]
-            c1 = tile[y & 1, 1]
-            for x in range(0, w - 1, 2):
-                out[y, x] = rgb[y, x, c0]
-                out[y, x + 1] = rgb[y, x + 1, c1]
-            if w & 1:
-                out[y, w - 1] = rgb[y, w - 1, c0]
+            dc = tile[y & 1, 1] - c0
+            for x in range(w):
+                out[y, x] = row[3 * x + c0 + (x & 1) * dc]
         bad += row_bad
     return bad

@@ -1,8 +1,8 @@
 """Slow, obviously-correct NumPy float64 reference of the clocked sensor.
 
 Written independently of ``spikesim._kernels`` (its own colour filter, radiance
-integral, hash, normal deviates with ``np.log``, and a float64 accumulator
-instead of fixed point) to check the kernel bit for bit and to serve as the
+integral, hash, normal deviates with ``np.log`` and fancy indexing into the
+shipped quantile table, and a float64 accumulator instead of fixed point) to check the kernel bit for bit and to serve as the
 vectorised-NumPy baseline of ``benchmarks/bench_kernel.py``.  Loops over
 readouts; vectorised over pixels.
 
@@ -17,6 +17,8 @@ happen in practice, and the tests state it.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -47,8 +49,8 @@ def _pixel_bits_np(rkey: np.uint64, n_pixels: int) -> np.ndarray:
     return mix64_np(np.uint64(rkey) ^ p)
 
 
-def normal_np(bits: np.ndarray) -> np.ndarray:
-    """Standard normals by inversion (same mapping as ``spikesim.rng.normal``)."""
+def _normal_exact_np(bits: np.ndarray) -> np.ndarray:
+    """Exact inversion ``√2·erfinv(2u − 1)`` (same polynomial as ``spikesim.rng``)."""
     u = ((bits >> np.uint64(12)).astype(np.float64) + 0.5) * 2.0**-52
     x = 2.0 * u - 1.0
     w = -np.log(4.0 * u * (1.0 - u))
@@ -58,6 +60,22 @@ def normal_np(bits: np.ndarray) -> np.ndarray:
     for lo, hi in zip(rng._G_LOW, rng._G_HIGH, strict=True):
         g = g * s + np.where(high, hi, lo)
     return np.sqrt(2.0) * x * g
+
+
+def normal_np(bits: np.ndarray) -> np.ndarray:
+    """Standard normals, the mapping of ``spikesim.rng.normal``: linear
+    interpolation in the shipped table Φ⁻¹(k/4096) for the central bins, exact
+    inversion in the outermost ``rng.ICDF_TAIL_BINS`` on each side."""
+    bits = np.asarray(bits, dtype=np.uint64)
+    q = np.load(Path(rng.__file__).with_name("tables") / f"normal_icdf_{rng.ICDF_BINS}.npy")
+    k = (bits >> np.uint64(64 - rng.ICDF_BITS)).astype(np.int64)
+    t = (((bits >> np.uint64(12)) & np.uint64(2**40 - 1)).astype(np.float64) + 0.5) * 2.0**-40
+    tail = (k < rng.ICDF_TAIL_BINS) | (k >= rng.ICDF_BINS - rng.ICDF_TAIL_BINS)
+    kb = np.clip(k, 1, rng.ICDF_BINS - 2)  # body bins only; tails replaced below
+    z = q[kb] + (q[kb + 1] - q[kb]) * t
+    if tail.any():
+        z[tail] = _normal_exact_np(bits[tail])
+    return z
 
 
 def _sensor_view(rgb: np.ndarray, cfa: str | None) -> np.ndarray:

@@ -200,6 +200,8 @@ class SimulationRun:
             if rad.shape[:2] != self.sensor.shape:
                 raise bad_value(f"{name}.shape", rad.shape,
                                 f"({self.sensor.height}, {self.sensor.width}, 3)")
+        if not rad.flags.c_contiguous:
+            rad = np.ascontiguousarray(rad)
         if _kernels.mosaic_into(rad, self._tile, LUMA_WEIGHTS, out) > 0:
             validate_radiance(rad, name)  # raises with the offending value
 
@@ -256,6 +258,8 @@ class SimulationRun:
             bar = tqdm(total=self.n_readouts, unit="readout", desc="simulate")
         frame_bytes = h * wp * 4
         max_keys = max(2, CHUNK_KEYFRAME_BYTES // frame_bytes)
+        key_buffer = np.zeros((0, h, wp), np.float32)
+        buffers = _RecycledOutput()
         try:
             n0 = 0
             while n0 < self.n_readouts:
@@ -266,7 +270,9 @@ class SimulationRun:
                     n1 = n0 + max(1, (n1 - n0) // 2)
                     times = np.asarray(self.scene.key_times(n0 / clock, n1 / clock), np.float64)
                     tau = key_readout_times(times, clock)
-                frames = np.zeros((len(times), h, wp), np.float32)  # padding lanes stay 0
+                if key_buffer.shape[0] < len(times):  # reused: no page faults per chunk
+                    key_buffer = np.zeros((len(times), h, wp), np.float32)
+                frames = key_buffer[:len(times)]  # padding lanes stay 0 (never written)
                 for i, t in enumerate(times.tolist()):
                     if t in cache:
                         frames[i] = cache[t]
@@ -276,8 +282,8 @@ class SimulationRun:
                 cache = {times[-1].item(): frames[-1].copy()}
                 sched = build_schedule(tau, n0, n1)
                 # rows padded to whole 64-bit words; the kernel writes every word
-                out = np.empty((n1 - n0, h, wp // 64), np.uint64)
-                c_out = np.empty_like(out) if self.clean_twin else dummy_out
+                out = buffers.get((n1 - n0, h, wp // 64))
+                c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
                 _kernels.simulate_chunk(
                     frames, w, n0, *sched.kernel_args(), gain, offset, electrons, frac, whole,
                     out, reset, fast_ok, sg2, sp2, key(rng.STREAM_PAPER), key(rng.STREAM_SHOT),
@@ -292,12 +298,40 @@ class SimulationRun:
                 packed = out.view(np.uint8)[:, :, :nbytes]
                 c_packed = c_out.view(np.uint8)[:, :, :nbytes] if self.clean_twin else None
                 yield SpikeChunk(n0, packed, c_packed, gt, sel.copy())
+                out = c_out = packed = c_packed = None  # only the consumer may hold them now
                 if bar is not None:
                     bar.update(n1 - n0)
                 n0 = n1
         finally:
             if bar is not None:
                 bar.close()
+
+
+class _RecycledOutput:
+    """Output arrays for successive chunks, reused once the consumer lets go.
+
+    A fresh array of tens of MB costs about 10 ms of page faults on first
+    touch (measured on the 2-core VM), a sizeable share of a chunk's kernel
+    time.  A consumer that drops each chunk before asking for the next (the
+    streaming case: writing to a file, reducing) gets the same memory back;
+    an array still referenced anywhere else (a kept chunk, or any view of
+    it) is never handed out again.  At most ``keep`` arrays are remembered
+    (four: a stream and its clean twin, for the chunk a `for` loop still
+    holds and the one before).
+    """
+
+    def __init__(self, keep: int = 4):
+        self.keep = keep
+        self._arrays: list[np.ndarray] = []
+
+    def get(self, shape: tuple[int, ...]) -> np.ndarray:
+        for i in range(len(self._arrays)):
+            # references: the list entry and getrefcount's argument, nothing else
+            if self._arrays[i].shape == shape and sys.getrefcount(self._arrays[i]) == 2:
+                return self._arrays[i]
+        fresh = np.empty(shape, np.uint64)
+        self._arrays = [*self._arrays[-(self.keep - 1):], fresh] if self.keep > 1 else [fresh]
+        return fresh
 
 
 def _padded_width(width: int) -> int:

@@ -187,6 +187,41 @@ def test_bad_simulation_arguments():
         Keyframes([0.2, 0.1], [np.ones((2, 2))] * 2)
 
 
+class _ViewScene(ss.scenes.Scene):
+    """Returns a radiance view that is not C-contiguous (a transposed image)."""
+
+    height, width = 6, 5
+
+    def __init__(self, img, poison=None):
+        self.img, self.poison = img, poison
+
+    def radiance(self, t):
+        view = self.img.transpose(1, 0, 2)
+        if self.poison is not None:
+            view = view.copy()
+            view[4, 3, 2] = self.poison  # one bad value in the last channel
+        return view
+
+    def key_times(self, start_s, stop_s):
+        return np.array([0.0])
+
+    def describe(self):
+        return {"type": "view"}
+
+
+@pytest.mark.parametrize("cfa", ["RGGB", "mono"])
+def test_non_contiguous_radiance_equals_contiguous(cfa):
+    img = np.random.default_rng(3).random((5, 6, 3)).astype(np.float32)
+    sensor = ss.Sensor(height=6, width=5, cfa=cfa)
+    got = ss.simulate(_ViewScene(img), sensor, 50, seed=1).packed
+    want = ss.simulate(ss.scenes.Static(np.ascontiguousarray(img.transpose(1, 0, 2))),
+                       sensor, 50, seed=1).packed
+    np.testing.assert_array_equal(got, want)
+    for bad, what in ((np.inf, "inf"), (np.nan, "NaN"), (-0.5, "non-negative")):
+        with pytest.raises(ValueError, match=what):
+            ss.simulate(_ViewScene(img, poison=bad), sensor, 5)
+
+
 def test_static_scene_costs_one_key_frame():
     calls = []
 

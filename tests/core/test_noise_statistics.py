@@ -7,6 +7,8 @@ if the model were right and the seed random; the seeds are fixed).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from core_helpers import counts, flat_rows
@@ -28,6 +30,45 @@ def test_normal_generator_matches_standard_normal():
     # the far tails exist and are symmetric
     big = rng.pixel_normals(rng.stream_key(2, rng.STREAM_PAPER), 2_000_000)
     assert np.sum(big > 4) > 50 and np.sum(big < -4) > 50
+
+
+def test_icdf_table_is_the_normal_quantiles_and_symmetric():
+    q = np.load(Path(rng.__file__).with_name("tables") / f"normal_icdf_{rng.ICDF_BINS}.npy")
+    k = np.arange(1, rng.ICDF_BINS)
+    np.testing.assert_allclose(q[1:-1], stats.norm.ppf(k / rng.ICDF_BINS), rtol=1e-14, atol=1e-15)
+    np.testing.assert_array_equal(q[1:-1], -q[-2:0:-1])
+
+
+def test_fast_normal_against_exact_inversion_and_exact_moments():
+    """The table path is within 1.4e-4 of exact inversion (tails are exact);
+    its variance and fourth moment, computed in closed form from the table
+    (z = Q_k + D_k·t with t uniform in each bin), are within 4e-6 and 4e-5."""
+    bits = rng.mix64(np.uint64(12345)) + np.arange(400_000, dtype=np.uint64) * np.uint64(rng.G2)
+    fast = np.array([rng.normal(b) for b in bits[:20_000]])
+    exact = np.array([rng.normal_exact(b) for b in bits[:20_000]])
+    assert np.max(np.abs(fast - exact)) < 1.4e-4
+    tail = np.abs(exact) > -stats.norm.ppf(rng.ICDF_TAIL_BINS / rng.ICDF_BINS)
+    assert tail.any() and np.array_equal(fast[tail], exact[tail])
+    q = rng._ICDF_Q[rng.ICDF_TAIL_BINS:rng.ICDF_BINS - rng.ICDF_TAIL_BINS + 1]
+    lo, d = q[:-1], np.diff(q)
+    a = q[0]  # body is [a, -a]; beyond it the exact normal
+    t_m2 = 2 * (stats.norm.cdf(a) - a * stats.norm.pdf(a))
+    t_m4 = 2 * (3 * stats.norm.cdf(a) - (a**3 + 3 * a) * stats.norm.pdf(a))
+    m2 = np.sum(lo**2 + lo * d + d**2 / 3) / rng.ICDF_BINS + t_m2
+    m4 = np.sum(((lo + d) ** 5 - lo**5) / (5 * d)) / rng.ICDF_BINS + t_m4
+    assert abs(m2 - 1) < 4e-6 and abs(m4 - 3) < 4.5e-5
+
+
+def test_block_normals_equal_scalar_normals():
+    z = np.empty(64)
+    tails = 0
+    for n in range(40):  # enough readouts that tail lanes occur
+        rk = np.uint64(rng.readout_key(rng.stream_key(3, rng.STREAM_PAPER), n))
+        rng.normals_into(rk, np.uint64(640), z)
+        bits = [np.uint64(rng.pixel_bits(rk, np.uint64(640 + i))) for i in range(64)]
+        np.testing.assert_array_equal(z, [rng.normal(b) for b in bits])
+        tails += sum(int(b) >> 52 < rng.ICDF_TAIL_BINS for b in bits)
+    assert tails > 0
 
 
 def test_mix64_matches_splitmix64_reference_value():

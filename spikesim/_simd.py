@@ -1,0 +1,99 @@
+"""Whole-block vector operations written directly in LLVM IR (numba intrinsics).
+
+numba's auto-vectoriser turns "OR the 64 per-lane carry bits into one word"
+into a chain of masked loads and a horizontal OR; LLVM's own idiom for it is a
+single ``bitcast <64 x i1> to i64``, which x86 lowers to vector compares into
+mask registers (AVX-512) or ``movmsk`` (AVX2/SSE) and other targets lower
+correctly too.  These helpers express one 64-lane block step that way.  Lane
+``k`` maps to bit ``k`` of the result, the little-bit-order packed layout of
+DESIGN.md §3.
+"""
+
+from __future__ import annotations
+
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
+
+LANES = 64
+
+
+def _is_u64_array(t) -> bool:
+    return isinstance(t, types.Array) and t.dtype == types.uint64
+
+
+@intrinsic
+def carry_add64(typingctx, acc, inc, start):
+    """``acc[start:start+64] += inc[start:start+64]`` (uint64, wrapping).
+
+    Returns the 64 carry-out bits as one uint64 (lane ``k`` → bit ``k``): with
+    the accumulator fraction in units of 2⁻⁶⁴ θ, a carry is a threshold
+    crossing.  Both arrays must be C-contiguous; no bounds check.
+    """
+    if not (_is_u64_array(acc) and _is_u64_array(inc) and isinstance(start, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        vec = ir.VectorType(ir.IntType(64), LANES)
+        a = context.make_array(sig.args[0])(context, builder, args[0])
+        b = context.make_array(sig.args[1])(context, builder, args[1])
+        off = context.cast(builder, args[2], sig.args[2], types.intp)
+        pa = builder.bitcast(builder.gep(a.data, [off]), vec.as_pointer())
+        pb = builder.bitcast(builder.gep(b.data, [off]), vec.as_pointer())
+        old = builder.load(pa, align=8)
+        new = builder.add(old, builder.load(pb, align=8))
+        builder.store(new, pa, align=8)
+        return builder.bitcast(builder.icmp_unsigned("<", new, old), ir.IntType(LANES))
+
+    return types.uint64(acc, inc, start), codegen
+
+
+def _is_f64_array(t) -> bool:
+    return isinstance(t, types.Array) and t.dtype == types.float64
+
+
+@intrinsic
+def linear_carry_add64(typingctx, acc, level, slope, gain, offset, phi, start):
+    """One readout of a linear-radiance segment for a 64-lane block.
+
+    Lane ``k`` (index ``start + k``) gets the charge
+    ``q = (gain·(level + slope·phi) + offset)·2⁶⁴`` (float64, evaluated in
+    exactly this order, truncated to uint64: the same value as the scalar
+    kernel and the NumPy reference), ``acc += q`` (wrapping), and the carry
+    bits are returned as in :func:`carry_add64`.  Every charge must lie in
+    [0, 1) threshold (the caller checks), else the conversion is undefined.
+    """
+    arrays = (level, slope, gain, offset)
+    if not (_is_u64_array(acc) and all(_is_f64_array(a) for a in arrays)
+            and isinstance(phi, types.Float) and isinstance(start, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        i64 = ir.IntType(64)
+        uvec = ir.VectorType(i64, LANES)
+        fvec = ir.VectorType(ir.DoubleType(), LANES)
+        off = context.cast(builder, args[6], sig.args[6], types.intp)
+
+        def lanes(k, vec):
+            arr = context.make_array(sig.args[k])(context, builder, args[k])
+            return builder.bitcast(builder.gep(arr.data, [off]), vec.as_pointer())
+
+        def splat(value):
+            return builder.shuffle_vector(
+                builder.insert_element(ir.Constant(fvec, ir.Undefined), value, i64(0)),
+                ir.Constant(fvec, ir.Undefined),
+                ir.Constant(ir.VectorType(ir.IntType(32), LANES), None))
+
+        a, d, g, o = (builder.load(lanes(k, fvec), align=8) for k in (1, 2, 3, 4))
+        phi_v = splat(context.cast(builder, args[5], sig.args[5], types.float64))
+        level_now = builder.fadd(a, builder.fmul(d, phi_v))
+        q = builder.fadd(builder.fmul(g, level_now), o)
+        q = builder.fmul(q, splat(ir.Constant(ir.DoubleType(), 2.0**64)))
+        pa = lanes(0, uvec)
+        old = builder.load(pa, align=8)
+        new = builder.add(old, builder.fptoui(q, uvec))
+        builder.store(new, pa, align=8)
+        return builder.bitcast(builder.icmp_unsigned("<", new, old), ir.IntType(LANES))
+
+    return types.uint64(acc, level, slope, gain, offset, phi, start), codegen
+
