@@ -180,10 +180,10 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
-    with the charge; ``zbuf`` is scratch for the lanes' normal deviates.  Each stage is a separate loop over the 64 lanes so the
-    stages without data-dependent control flow vectorise; padding lanes
-    (x ≥ width) have zero gain and offset, so they never fire whatever noise
-    is drawn for them.
+    with the charge; ``zbuf`` is scratch for the lanes' normal deviates.
+    Each stage is a separate loop over the 64 lanes so the stages without
+    data-dependent control flow vectorise; padding lanes (x ≥ width) have
+    zero gain and offset, so they never fire whatever noise is drawn for them.
     """
     pix0 = np.uint64(y * width + x0)
     if paper_sg2 > 0.0 or paper_sp2 > 0.0:

@@ -2,9 +2,9 @@
 
 Written independently of ``spikesim._kernels`` (its own colour filter, radiance
 integral, hash, normal deviates with ``np.log`` and fancy indexing into the
-shipped quantile table, and a float64 accumulator instead of fixed point) to check the kernel bit for bit and to serve as the
-vectorised-NumPy baseline of ``benchmarks/bench_kernel.py``.  Loops over
-readouts; vectorised over pixels.
+shipped quantile table, and a float64 accumulator instead of fixed point) to
+check the kernel bit for bit and to serve as the vectorised-NumPy baseline of
+``benchmarks/bench_kernel.py``.  Loops over readouts; vectorised over pixels.
 
 Supported: every reset mode, CFA, key-frame layout, fixed patterns, and paper
 (eq. 5) noise.  Not supported: per-readout physical noise (Poisson shot noise,

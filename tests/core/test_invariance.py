@@ -51,7 +51,7 @@ def test_streaming_and_keeping_chunks_give_same_bits():
         copied.append((chunk.packed.copy(), chunk.clean_packed.copy()))
         del chunk
     assert len({id(c.packed.base) for c in kept}) == len(kept)  # nothing shared
-    for k, (packed, clean) in zip(kept, copied):
+    for k, (packed, clean) in zip(kept, copied, strict=True):
         np.testing.assert_array_equal(k.packed, packed)
         np.testing.assert_array_equal(k.clean_packed, clean)
 
