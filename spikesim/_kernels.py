@@ -118,9 +118,9 @@ def poisson(lam, bits):
 def _segment_radiance(frames, a, b, y, x0, ia, di):
     """Per-lane I_a and I_b − I_a of a segment for the block at (y, x0)."""
     for lane in range(BLOCK):
-        va = np.float64(frames[a, y, x0 + lane])
+        va = np.float64(frames[y, x0 // BLOCK, a, lane])
         ia[lane] = va
-        di[lane] = np.float64(frames[b, y, x0 + lane]) - va
+        di[lane] = np.float64(frames[y, x0 // BLOCK, b, lane]) - va
 
 
 @njit(inline="always", **_opts)
@@ -134,8 +134,8 @@ def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, 
         ln = piece_len[p]
         phi = piece_phi[p]
         for lane in range(BLOCK):
-            va = np.float64(frames[a, y, x0 + lane])
-            vb = np.float64(frames[b, y, x0 + lane])
+            va = np.float64(frames[y, x0 // BLOCK, a, lane])
+            vb = np.float64(frames[y, x0 // BLOCK, b, lane])
             ibuf[lane] += ln * (va + (vb - va) * phi)
 
 
@@ -314,8 +314,10 @@ def simulate_chunk(frames, width, t_off,
                    clean, c_frac, c_whole, c_out, c_gain, c_offset, c_electrons):
     """Simulate readouts ``[run_start[0], run_stop[-1])`` for every pixel.
 
-    ``frames`` (K, H, Wp) float32 are the sensor-channel radiances at the
-    chunk's key frames, with ``Wp`` a multiple of 64 (padding lanes zero).
+    ``frames`` (H, Wp/64, K', 64) float32 hold the sensor-channel radiances at
+    the chunk's key frames (key ``k`` of pixel ``x`` at ``[y, x // 64, k,
+    x % 64]``; K' ≥ K, padding lanes zero, ``Wp`` a multiple of 64): the key
+    frames of one block are contiguous, so a block streams through them.
     ``gain``, ``offset`` (H, Wp) float64 and ``electrons`` (H, Wp) float64
     (all −1 when shot noise is off) are the per-pixel charge constants;
     ``frac`` (H, Wp) uint64 and ``whole`` (H, Wp) int64 the accumulator,
@@ -325,9 +327,8 @@ def simulate_chunk(frames, width, t_off,
     byte layout (viewed as uint8, rows padded to Wp/8 bytes).  When ``clean`` is true the
     noise-free twin is advanced in the same pass with its own arrays.
     """
-    height = frames.shape[1]
-    padded = frames.shape[2]
-    nblk = padded // BLOCK
+    height = frames.shape[0]
+    nblk = frames.shape[1]
     for job in prange(height * nblk):
         y = job // nblk
         x0 = (job % nblk) * BLOCK
@@ -400,15 +401,16 @@ def splat_flow(flow, select, scale, sign, wsum, vsum):  # pragma: no cover - com
 
 
 @njit(parallel=True, **_opts)
-def mosaic_into(rgb, tile, luma, out):
-    """Sample (H, W, 3) radiance through the CFA into ``out[:, :W]`` in one pass.
+def mosaic_into(rgb, tile, luma, out, k):
+    """Sample (H, W, 3) radiance through the CFA into key ``k`` of ``out``
+    (the blocked key-frame layout of :func:`simulate_chunk`) in one pass.
 
     ``rgb`` must be C-contiguous (each row is read as one flat run of 3·W
     values, which keeps both loops vectorised).  ``tile`` (2, 2) int64 holds
     the channel of each Bayer phase, or −1 for a monochrome sensor (which sees
-    ``luma``-weighted RGB, summed in float64).  Returns the number of values
-    that are NaN, infinite or negative (0 means the input is valid); the
-    caller raises on any.
+    ``luma``-weighted RGB, summed in float64).  Padding lanes are not written.
+    Returns the number of values that are NaN, infinite or negative (0 means
+    the input is valid); the caller raises on any.
     """
     h = rgb.shape[0]
     w = rgb.shape[1]
@@ -421,15 +423,19 @@ def mosaic_into(rgb, tile, luma, out):
             v = row[i]
             ok = (v >= 0.0) & (v * 0.0 == 0.0)  # v·0 is NaN for NaN and ±inf
             row_bad += 0 if ok else 1
-        if tile[0, 0] < 0:
-            for x in range(w):
-                out[y, x] = np.float32(luma[0] * np.float64(row[3 * x])
-                                       + luma[1] * np.float64(row[3 * x + 1])
-                                       + luma[2] * np.float64(row[3 * x + 2]))
-        else:
-            c0 = tile[y & 1, 0]
-            dc = tile[y & 1, 1] - c0
-            for x in range(w):
-                out[y, x] = row[3 * x + c0 + (x & 1) * dc]
+        mono = tile[0, 0] < 0
+        c0 = tile[y & 1, 0]
+        dc = tile[y & 1, 1] - c0
+        for b in range((w + BLOCK - 1) // BLOCK):
+            x0 = b * BLOCK
+            dst = out[y, b, k]
+            for lane in range(min(BLOCK, w - x0)):
+                x = x0 + lane
+                if mono:
+                    dst[lane] = np.float32(luma[0] * np.float64(row[3 * x])
+                                           + luma[1] * np.float64(row[3 * x + 1])
+                                           + luma[2] * np.float64(row[3 * x + 2]))
+                else:
+                    dst[lane] = row[3 * x + c0 + (x & 1) * dc]
         bad += row_bad
     return bad

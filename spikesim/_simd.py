@@ -97,3 +97,4 @@ def linear_carry_add64(typingctx, acc, level, slope, gain, offset, phi, start):
 
     return types.uint64(acc, level, slope, gain, offset, phi, start), codegen
 
+

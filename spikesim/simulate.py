@@ -191,8 +191,9 @@ class SimulationRun:
         return self.n_readouts
 
     # -- helpers -----------------------------------------------------------
-    def _sensor_frame_into(self, t: float, out: np.ndarray) -> None:
-        """Radiance at ``t`` through the CFA into ``out`` (H, ≥W) float32, validated."""
+    def _sensor_frame_into(self, t: float, out: np.ndarray, k: int) -> None:
+        """Radiance at ``t`` through the CFA into key ``k`` of ``out`` (the
+        kernel's blocked key-frame layout), validated."""
         rad = np.asarray(self.scene.radiance(t))
         name = f"scene.radiance(t={t:.6g})"
         if rad.shape != (*self.sensor.shape, 3) or rad.dtype.kind != "f":
@@ -202,7 +203,7 @@ class SimulationRun:
                                 f"({self.sensor.height}, {self.sensor.width}, 3)")
         if not rad.flags.c_contiguous:
             rad = np.ascontiguousarray(rad)
-        if _kernels.mosaic_into(rad, self._tile, LUMA_WEIGHTS, out) > 0:
+        if _kernels.mosaic_into(rad, self._tile, LUMA_WEIGHTS, out, k) > 0:
             validate_radiance(rad, name)  # raises with the offending value
 
     def _padded(self, arr: np.ndarray, fill: float, dtype) -> np.ndarray:
@@ -258,7 +259,7 @@ class SimulationRun:
             bar = tqdm(total=self.n_readouts, unit="readout", desc="simulate")
         frame_bytes = h * wp * 4
         max_keys = max(2, CHUNK_KEYFRAME_BYTES // frame_bytes)
-        key_buffer = np.zeros((0, h, wp), np.float32)
+        key_buffer = np.zeros((h, wp // 64, 0, 64), np.float32)
         buffers = _RecycledOutput()
         try:
             n0 = 0
@@ -270,22 +271,24 @@ class SimulationRun:
                     n1 = n0 + max(1, (n1 - n0) // 2)
                     times = np.asarray(self.scene.key_times(n0 / clock, n1 / clock), np.float64)
                     tau = key_readout_times(times, clock)
-                if key_buffer.shape[0] < len(times):  # reused: no page faults per chunk
-                    key_buffer = np.zeros((len(times), h, wp), np.float32)
-                frames = key_buffer[:len(times)]  # padding lanes stay 0 (never written)
+                if key_buffer.shape[2] < len(times):
+                    # allocated once for the largest chunk and reused by every later
+                    # chunk (no new page faults); padding lanes stay 0 (never written)
+                    key_buffer = np.zeros((h, wp // 64, max(len(times), max_keys), 64),
+                                          np.float32)
                 for i, t in enumerate(times.tolist()):
                     if t in cache:
-                        frames[i] = cache[t]
+                        key_buffer[:, :, i] = cache[t]
                     else:
-                        self._sensor_frame_into(t, frames[i])
+                        self._sensor_frame_into(t, key_buffer, i)
                 # the next chunk starts at this chunk's last key frame
-                cache = {times[-1].item(): frames[-1].copy()}
+                cache = {times[-1].item(): key_buffer[:, :, len(times) - 1].copy()}
                 sched = build_schedule(tau, n0, n1)
                 # rows padded to whole 64-bit words; the kernel writes every word
                 out = buffers.get((n1 - n0, h, wp // 64))
                 c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
                 _kernels.simulate_chunk(
-                    frames, w, n0, *sched.kernel_args(), gain, offset, electrons, frac, whole,
+                    key_buffer, w, n0, *sched.kernel_args(), gain, offset, electrons, frac, whole,
                     out, reset, fast_ok, sg2, sp2, key(rng.STREAM_PAPER), key(rng.STREAM_SHOT),
                     jitter, key(rng.STREAM_JITTER), self.clean_twin, c_frac, c_whole, c_out,
                     c_gain, c_offset, c_electrons,
