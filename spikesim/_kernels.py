@@ -176,18 +176,19 @@ def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, 
 
 @njit(inline="always", **_opts)
 def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
-                  paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf):
+                  paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf, bbuf):
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
-    with the charge; ``zbuf`` is scratch for the lanes' normal deviates.
+    with the charge; ``zbuf`` (float64) and ``bbuf`` (uint64) are scratch for
+    the lanes' normal deviates and their random bits.
     Each stage is a separate loop over the 64 lanes so the stages without
     data-dependent control flow vectorise; padding lanes (x ≥ width) have
     zero gain and offset, so they never fire whatever noise is drawn for them.
     """
     pix0 = np.uint64(y * width + x0)
     if paper_sg2 > 0.0 or paper_sp2 > 0.0:
-        normals_into(readout_key(key_paper, n), pix0, zbuf)
+        normals_into(readout_key(key_paper, n), pix0, zbuf, bbuf)
         if paper_sp2 > 0.0:
             for lane in range(BLOCK):
                 level = ibuf[lane]
@@ -256,6 +257,7 @@ def _block_runs(frames, y, x0, width, t_off,
     s_f3 = np.empty(BLOCK, np.float64)
     s_f4 = np.empty(BLOCK, np.float64)
     zbuf = np.empty(BLOCK, np.float64)
+    bbuf = np.empty(BLOCK, np.uint64)
     blk = x0 // BLOCK
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]
@@ -265,7 +267,7 @@ def _block_runs(frames, y, x0, width, t_off,
                              piece_phi, y, x0, ibuf)
             m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                               reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                              key_jitter, zbuf)
+                              key_jitter, zbuf, bbuf)
             out[n0 - t_off, y, blk] = m
             continue
         t_a = run_ta[r]
@@ -301,7 +303,7 @@ def _block_runs(frames, y, x0, width, t_off,
                     ibuf[lane] = ia[lane] + di[lane] * phi
                 m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                                   reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                                  key_jitter, zbuf)
+                                  key_jitter, zbuf, bbuf)
                 out[n - t_off, y, blk] = m
 
 

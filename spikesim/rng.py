@@ -285,20 +285,22 @@ def normal(bits):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def normals_into(rkey, pixel0, z):
+def normals_into(rkey, pixel0, z, bits):
     """``z[i] = normal(pixel_bits(rkey, pixel0 + i))`` for every i, vectorised:
-    a branch-free table pass, then exact inversion for the few tail lanes."""
+    a branch-free table pass (keeping the random bits in ``bits``, uint64 of
+    the same length), then exact inversion for the few tail lanes."""
     n = z.shape[0]
     tails = 0
     for i in range(n):
-        zi, tail = _normal_body(pixel_bits(rkey, pixel0 + np.uint64(i)))
+        b = pixel_bits(rkey, pixel0 + np.uint64(i))
+        zi, tail = _normal_body(b)
         z[i] = zi
+        bits[i] = b
         tails += 1 if tail else 0
     if tails:
         for i in range(n):
-            bits = pixel_bits(rkey, pixel0 + np.uint64(i))
-            if (bits >> _S52_BIN) - _TAIL_LO >= _BODY_SPAN:
-                z[i] = normal_exact(bits)
+            if (bits[i] >> _S52_BIN) - _TAIL_LO >= _BODY_SPAN:
+                z[i] = normal_exact(bits[i])
 
 
 @njit(cache=True, error_model="numpy")
