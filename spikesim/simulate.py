@@ -272,10 +272,10 @@ class SimulationRun:
                     times = np.asarray(self.scene.key_times(n0 / clock, n1 / clock), np.float64)
                     tau = key_readout_times(times, clock)
                 if key_buffer.shape[2] < len(times):
-                    # allocated once for the largest chunk and reused by every later
-                    # chunk (no new page faults); padding lanes stay 0 (never written)
-                    key_buffer = np.zeros((h, wp // 64, max(len(times), max_keys), 64),
-                                          np.float32)
+                    # reused by later chunks (no new page faults), with a little room for
+                    # a chunk with more keys; padding lanes stay 0 (never written)
+                    room = max(len(times), min(max_keys, len(times) + len(times) // 4 + 1))
+                    key_buffer = np.zeros((h, wp // 64, room, 64), np.float32)
                 for i, t in enumerate(times.tolist()):
                     if t in cache:
                         key_buffer[:, :, i] = cache[t]
