@@ -91,6 +91,32 @@ def test_poisson_sampler(lam):
         assert stats.chi2.sf(chi2, keep.sum() - 1) > 1e-3
 
 
+def test_block_shot_noise_equals_the_scalar_sampler():
+    """The kernel's two-pass block sampler is bit for bit ``poisson`` per lane,
+    for λ = 0, small (inversion), and large (rejection, squeeze or not)."""
+    from numba import njit
+
+    from spikesim._kernels import _shot_noise_block
+
+    @njit
+    def block(charge, electrons, rkey, pix0):
+        q = charge.copy()
+        _shot_noise_block(q, electrons, rkey, pix0, np.empty(64), np.empty(64, np.uint64))
+        return q
+
+    gen = np.random.default_rng(4)
+    electrons = gen.uniform(200.0, 2000.0, 64)
+    for trial in range(30):
+        charge = gen.uniform(0.0, 0.8, 64) * (gen.random(64) > 0.1)  # some lanes dark
+        charge[:8] = gen.uniform(0.0, 0.01, 8)  # λ < 10: inversion
+        rkey = np.uint64(rng.readout_key(rng.stream_key(7, rng.STREAM_SHOT), trial))
+        got = block(charge, electrons, rkey, np.uint64(128))
+        want = [poisson(charge[i] * electrons[i],
+                        np.uint64(rng.pixel_bits(rkey, np.uint64(128 + i)))) / electrons[i]
+                for i in range(64)]
+        np.testing.assert_array_equal(got, want)
+
+
 @pytest.mark.parametrize("sigma_g,sigma_p", [(10.0, 0.0), (15.0, 0.0), (3.0, 4.0)])
 def test_paper_mode_mean_and_variance_follow_eq5(sigma_g, sigma_p):
     """count = floor(A0 + S), S = Σ r·max(ỹ_n, 0)/255 with ỹ ~ N(y, σ_g² + σ_p²·y):
