@@ -280,19 +280,24 @@ def _block_runs(frames, y, x0, width, t_off,
                 run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0, run_p1,
                 piece_a, piece_b, piece_len, piece_phi,
                 gain, offset, electrons, frac, whole, out, reset, fast_ok,
-                paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter):
-    """All runs of one chunk for one 64-pixel block and one accumulator set."""
-    ia = np.empty(BLOCK, np.float64)
-    di = np.empty(BLOCK, np.float64)
-    ibuf = np.empty(BLOCK, np.float64)
-    s_u1 = np.empty(BLOCK, np.uint64)
-    s_u2 = np.empty(BLOCK, np.uint64)
-    s_f1 = np.empty(BLOCK, np.float64)
-    s_f2 = np.empty(BLOCK, np.float64)
-    s_f3 = np.empty(BLOCK, np.float64)
-    s_f4 = np.empty(BLOCK, np.float64)
-    zbuf = np.empty(BLOCK, np.float64)
-    bbuf = np.empty(BLOCK, np.uint64)
+                paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
+                scratch_f, scratch_u):
+    """All runs of one chunk for one 64-pixel block and one accumulator set.
+
+    ``scratch_f`` (8, 64) float64 and ``scratch_u`` (3, 64) uint64 are the
+    caller's work rows (allocated once per image row, not per block).
+    """
+    ia = scratch_f[0]
+    di = scratch_f[1]
+    ibuf = scratch_f[2]
+    s_f1 = scratch_f[3]
+    s_f2 = scratch_f[4]
+    s_f3 = scratch_f[5]
+    s_f4 = scratch_f[6]
+    zbuf = scratch_f[7]
+    s_u1 = scratch_u[0]
+    s_u2 = scratch_u[1]
+    bbuf = scratch_u[2]
     blk = x0 // BLOCK
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]
@@ -366,30 +371,35 @@ def simulate_chunk(frames, width, t_off,
     """
     height = frames.shape[0]
     nblk = frames.shape[1]
-    for job in prange(height * nblk):
-        y = job // nblk
-        x0 = (job % nblk) * BLOCK
-        sl = slice(x0, x0 + BLOCK)
-        f = frac[y, sl].copy()
-        w = whole[y, sl].copy()
-        _block_runs(frames, y, x0, width, t_off,
-                    run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
-                    run_p1, piece_a, piece_b, piece_len, piece_phi,
-                    gain[y, sl], offset[y, sl], electrons[y, sl], f, w, out, reset, fast_ok,
-                    paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter)
-        frac[y, sl] = f
-        whole[y, sl] = w
-        if clean:
-            cf = c_frac[y, sl].copy()
-            cw = c_whole[y, sl].copy()
+    for y in prange(height):
+        scratch_f = np.empty((8, BLOCK), np.float64)
+        scratch_u = np.empty((3, BLOCK), np.uint64)
+        f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
+        w = np.empty(BLOCK, np.int64)
+        for b in range(nblk):
+            x0 = b * BLOCK
+            sl = slice(x0, x0 + BLOCK)
+            f[:] = frac[y, sl]
+            w[:] = whole[y, sl]
             _block_runs(frames, y, x0, width, t_off,
                         run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
                         run_p1, piece_a, piece_b, piece_len, piece_phi,
-                        c_gain[y, sl], c_offset[y, sl], c_electrons[y, sl], cf, cw, c_out,
-                        reset, reset == RESET_MODULO, 0.0, 0.0, np.uint64(0), np.uint64(0),
-                        0.0, np.uint64(0))
-            c_frac[y, sl] = cf
-            c_whole[y, sl] = cw
+                        gain[y, sl], offset[y, sl], electrons[y, sl], f, w, out, reset, fast_ok,
+                        paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
+                        scratch_f, scratch_u)
+            frac[y, sl] = f
+            whole[y, sl] = w
+            if clean:
+                f[:] = c_frac[y, sl]
+                w[:] = c_whole[y, sl]
+                _block_runs(frames, y, x0, width, t_off,
+                            run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv,
+                            run_p0, run_p1, piece_a, piece_b, piece_len, piece_phi,
+                            c_gain[y, sl], c_offset[y, sl], c_electrons[y, sl], f, w, c_out,
+                            reset, reset == RESET_MODULO, 0.0, 0.0, np.uint64(0), np.uint64(0),
+                            0.0, np.uint64(0), scratch_f, scratch_u)
+                c_frac[y, sl] = f
+                c_whole[y, sl] = w
 
 
 @njit(parallel=True, **_opts)
