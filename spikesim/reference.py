@@ -62,12 +62,15 @@ def _normal_exact_np(bits: np.ndarray) -> np.ndarray:
     return np.sqrt(2.0) * x * g
 
 
+_ICDF_TABLE = np.load(Path(rng.__file__).with_name("tables") / f"normal_icdf_{rng.ICDF_BINS}.npy")
+
+
 def normal_np(bits: np.ndarray) -> np.ndarray:
     """Standard normals, the mapping of ``spikesim.rng.normal``: linear
     interpolation in the shipped table Φ⁻¹(k/4096) for the central bins, exact
     inversion in the outermost ``rng.ICDF_TAIL_BINS`` on each side."""
     bits = np.asarray(bits, dtype=np.uint64)
-    q = np.load(Path(rng.__file__).with_name("tables") / f"normal_icdf_{rng.ICDF_BINS}.npy")
+    q = _ICDF_TABLE
     k = (bits >> np.uint64(64 - rng.ICDF_BITS)).astype(np.int64)
     t = (((bits >> np.uint64(12)) & np.uint64(2**40 - 1)).astype(np.float64) + 0.5) * 2.0**-40
     tail = (k < rng.ICDF_TAIL_BINS) | (k >= rng.ICDF_BINS - rng.ICDF_TAIL_BINS)
