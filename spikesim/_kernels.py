@@ -56,8 +56,6 @@ RUN_SEGMENT = 0  # readouts [start, stop) inside one segment (or a hold)
 RUN_PIECES = 1  # one readout whose period contains key times
 
 _U1 = np.uint64(1)
-_U8 = np.uint64(8)
-_UFF = np.uint64(0xFF)
 _POISSON_INVERSION_MAX = 10.0
 
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
@@ -195,19 +193,18 @@ def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, f):
 
 @njit(inline="always", **_opts)
 def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
-                 f, a, d, g, o):
+                 f, g, o):
     """Modulo reset, no per-readout noise, charge < 1 θ, linear radiance: one
-    vector step per readout (:func:`spikesim._simd.linear_carry_add64`) on
-    contiguous scratch copies of the lanes (``f, a, d, g, o``)."""
+    vector step per readout (:func:`spikesim._simd.linear_carry_add64`).
+    ``ia``, ``di`` are contiguous already; ``f, g, o`` are contiguous scratch
+    copies of the state, gain and offset."""
     for lane in range(BLOCK):
         f[lane] = frac[lane]
-        a[lane] = ia[lane]
-        d[lane] = di[lane]
         g[lane] = gain[lane]
         o[lane] = offset[lane]
     for n in range(n0, n1):
         phi = (np.float64(n) + 0.5 - t_a) * inv_span
-        out[n - t_off, y, blk] = linear_carry_add64(f, a, d, g, o, phi, 0)
+        out[n - t_off, y, blk] = linear_carry_add64(f, ia, di, g, o, phi, 0)
     for lane in range(BLOCK):
         frac[lane] = f[lane]
 
@@ -284,17 +281,15 @@ def _block_runs(frames, y, x0, width, t_off,
                 scratch_f, scratch_u):
     """All runs of one chunk for one 64-pixel block and one accumulator set.
 
-    ``scratch_f`` (8, 64) float64 and ``scratch_u`` (3, 64) uint64 are the
+    ``scratch_f`` (6, 64) float64 and ``scratch_u`` (3, 64) uint64 are the
     caller's work rows (allocated once per image row, not per block).
     """
     ia = scratch_f[0]
     di = scratch_f[1]
     ibuf = scratch_f[2]
-    s_f1 = scratch_f[3]
-    s_f2 = scratch_f[4]
-    s_f3 = scratch_f[5]
-    s_f4 = scratch_f[6]
-    zbuf = scratch_f[7]
+    s_g = scratch_f[3]
+    s_o = scratch_f[4]
+    zbuf = scratch_f[5]
     s_u1 = scratch_u[0]
     s_u2 = scratch_u[1]
     bbuf = scratch_u[2]
@@ -335,7 +330,7 @@ def _block_runs(frames, y, x0, width, t_off,
             _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, s_u1, s_u2)
         elif use_fast:
             _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
-                         s_u1, s_f1, s_f2, s_f3, s_f4)
+                         s_u1, s_g, s_o)
         else:
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
@@ -372,7 +367,7 @@ def simulate_chunk(frames, width, t_off,
     height = frames.shape[0]
     nblk = frames.shape[1]
     for y in prange(height):
-        scratch_f = np.empty((8, BLOCK), np.float64)
+        scratch_f = np.empty((6, BLOCK), np.float64)
         scratch_u = np.empty((3, BLOCK), np.uint64)
         f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
         w = np.empty(BLOCK, np.int64)
