@@ -31,6 +31,8 @@ from spikesim.errors import bad_value
 
 __all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
 
+_STAGES = ("scene", "flow", "kernel", "write", "total")
+
 
 @dataclass
 class BuildSummary:
@@ -50,9 +52,8 @@ class BuildSummary:
         return [r for r in self.records if r["status"] == "failed"]
 
     def seconds_by_stage(self) -> dict:
-        stages = ("scene", "flow", "kernel", "write", "total")
         return {s: sum(r["seconds"][s] for r in self.records if r["status"] == "done")
-                for s in stages}
+                for s in _STAGES}
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -187,17 +188,33 @@ def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
                         on_result(fut.result())
                     except BrokenProcessPool as exc:
                         broken = True
-                        on_result(_lost(t, exc))
+                        on_result(_lost(t, exc, out))
             if broken:  # the pool is unusable: fail what it held, go on with a new one
                 for t in futures.values():
-                    on_result(_lost(t, BrokenProcessPool("worker process died")))
+                    on_result(_lost(t, BrokenProcessPool("worker process died"), out))
 
 
-def _lost(task: dict, exc: BaseException) -> dict:
+def _lost(task: dict, exc: BaseException, out: Path | None = None) -> dict:
+    """The record of a task whose result was lost with its worker.
+
+    A task can finish (its file renamed into place) in a surviving worker just
+    before the pool breaks; its result is then lost although its file is
+    complete. Such a file is checked like one of an earlier run and counted as
+    done, so the summary never calls a finished, valid file failed.
+    """
+    if out is not None and validate_existing(out / task["file"], task):
+        from spikesim.io import open_h5
+
+        path = out / task["file"]
+        with open_h5(path) as seq:
+            n, h, w = seq.shape
+        return {"id": task["id"], "file": task["file"], "split": task["split"],
+                "status": "done", "bytes": path.stat().st_size, "px_readouts": n * h * w,
+                "error": None, "seconds": dict.fromkeys(_STAGES, 0.0)}
     return {"id": task["id"], "file": task["file"], "split": task["split"], "status": "failed",
             "bytes": 0, "px_readouts": 0,
             "error": f"{type(exc).__name__}: {exc or 'a worker process died'}",
-            "seconds": {"scene": 0.0, "flow": 0.0, "kernel": 0.0, "write": 0.0, "total": 0.0}}
+            "seconds": dict.fromkeys(_STAGES, 0.0)}
 
 
 def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) -> str:
@@ -223,7 +240,7 @@ def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) 
             try:
                 on_result(fut.result())
             except Exception as exc:  # noqa: BLE001 - a lost worker fails only its task
-                on_result(_lost(by_key[fut.key], exc))
+                on_result(_lost(by_key[fut.key], exc, out))
     finally:
         client.close()
         if cluster is not None:

@@ -174,6 +174,27 @@ def test_killed_worker_loses_nothing(tmp_path, factory_module):
     assert len(open_dataset(out / "inj")) == 4
 
 
+def test_result_lost_with_the_pool_but_file_complete_counts_as_done(tmp_path):
+    """A sequence can finish in a surviving worker just as the pool breaks; its
+    file is then complete although its result is lost: it must not be reported failed."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    from spikesim.dataset.build import _lost
+    from spikesim.dataset.worker import run_task
+
+    task = plan_tasks(parse_manifest(small_manifest(count=1)))[0].to_dict()
+    lost = _lost(task, BrokenProcessPool("worker process died"), tmp_path)
+    assert lost["status"] == "failed" and "BrokenProcessPool" in lost["error"]
+    assert run_task(task, str(tmp_path))["status"] == "done"
+    rec = _lost(task, BrokenProcessPool("worker process died"), tmp_path)
+    assert rec["status"] == "done" and rec["error"] is None
+    assert rec["bytes"] == (tmp_path / task["file"]).stat().st_size
+    h, w = task["sensor"]["height"], task["sensor"]["width"]
+    assert rec["px_readouts"] == task["n_readouts"] * h * w
+    (tmp_path / task["file"]).write_bytes(b"truncated")  # a damaged file is not "done"
+    assert _lost(task, BrokenProcessPool("x"), tmp_path)["status"] == "failed"
+
+
 @pytest.mark.parametrize(
     "mutate,where",
     [
