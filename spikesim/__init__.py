@@ -7,6 +7,13 @@ Public API (DESIGN.md §4)::
     stream = ss.simulate(ss.scenes.Static(image), sensor, n_readouts=1000, seed=0)
 """
 
+# ruff: noqa: E402  (the numba cache is checked before any kernel module is imported)
+from pathlib import Path as _Path
+
+from spikesim._numba_cache import sync_cache as _sync_cache
+
+_sync_cache(_Path(__file__).parent)  # before any kernel module loads its cache
+
 from spikesim import bits, cfa, io, noise, scenes
 from spikesim._version import __version__
 from spikesim.errors import (

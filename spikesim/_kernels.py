@@ -41,8 +41,16 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from spikesim._simd import carry_add64, linear_carry_add64
-from spikesim.rng import normal, normals_into, pixel_bits, readout_key, uniform
+from spikesim._simd import carry_add64, linear_carry_add64, paper_carry_add64
+from spikesim.rng import (
+    NORMAL_ABS_MAX,
+    normal,
+    normals_into,
+    pixel_bits,
+    pixel_keys_into,
+    readout_key,
+    uniform,
+)
 
 BLOCK = 64  # pixels per block: one uint64 spike mask = 8 packed bytes
 TWO64 = 2.0**64
@@ -210,20 +218,68 @@ def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, 
 
 
 @njit(inline="always", **_opts)
+def _paper_fits(n0, n1, t_a, inv_span, ia, di, gain, offset, paper_sg2, paper_sp2):
+    """True when no paper-mode charge of readouts ``[n0, n1)`` can reach one
+    threshold: the level is linear in time, so its largest value is at an end
+    of the run, and the noisy level is at most ``level + σ(level)·NORMAL_ABS_MAX``
+    (σ grows with the level).  Branch-free count, so it vectorises."""
+    phi_first = (np.float64(n0) + 0.5 - t_a) * inv_span
+    phi_last = (np.float64(n1 - 1) + 0.5 - t_a) * inv_span
+    too_big = 0
+    for lane in range(BLOCK):
+        top = max(ia[lane] + di[lane] * phi_first, ia[lane] + di[lane] * phi_last, 0.0)
+        sd = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * top) * (1.0 / 255.0)
+        q = gain[lane] * (top + sd * NORMAL_ABS_MAX) + offset[lane]
+        too_big += 0 if q < FAST_Q_LIMIT else 1
+    return too_big == 0
+
+
+@njit(inline="always", **_opts)
+def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
+                paper_sg2, paper_sp2, key_paper, pkeys, level, z, sd, bits, f, g, o):
+    """Modulo reset, paper-mode noise only, every noisy charge < 1 θ
+    (:func:`_paper_fits`): per readout the block's normal deviates
+    (:func:`spikesim.rng.normals_into`) and one vector step
+    (:func:`spikesim._simd.paper_carry_add64`), the same values as
+    :func:`_general_step`.  ``level, z, sd, bits, f, g, o`` are contiguous scratch."""
+    for lane in range(BLOCK):
+        f[lane] = frac[lane]
+        g[lane] = gain[lane]
+        o[lane] = offset[lane]
+    sd_const = np.sqrt(paper_sg2) * (1.0 / 255.0)
+    if paper_sp2 == 0.0:
+        for lane in range(BLOCK):
+            sd[lane] = sd_const
+    for n in range(n0, n1):
+        phi = (np.float64(n) + 0.5 - t_a) * inv_span
+        for lane in range(BLOCK):
+            level[lane] = ia[lane] + di[lane] * phi
+        if paper_sp2 > 0.0:
+            for lane in range(BLOCK):
+                sd[lane] = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * level[lane]) * (1.0 / 255.0)
+        normals_into(readout_key(key_paper, n), pkeys, z, bits)
+        out[n - t_off, y, blk] = paper_carry_add64(f, level, z, sd, g, o, 0)
+    for lane in range(BLOCK):
+        frac[lane] = f[lane]
+
+
+@njit(inline="always", **_opts)
 def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
-                  paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf, bbuf):
+                  paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf, bbuf,
+                  pkeys):
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
     with the charge; ``zbuf`` (float64) and ``bbuf`` (uint64) are scratch for
-    the lanes' normal deviates and their random bits.
+    the lanes' normal deviates and their random bits, ``pkeys`` the block's
+    pixel keys (:func:`spikesim.rng.pixel_keys_into`).
     Each stage is a separate loop over the 64 lanes so the stages without
     data-dependent control flow vectorise; padding lanes (x ≥ width) have
     zero gain and offset, so they never fire whatever noise is drawn for them.
     """
     pix0 = np.uint64(y * width + x0)
     if paper_sg2 > 0.0 or paper_sp2 > 0.0:
-        normals_into(readout_key(key_paper, n), pix0, zbuf, bbuf)
+        normals_into(readout_key(key_paper, n), pkeys, zbuf, bbuf)
         if paper_sp2 > 0.0:
             for lane in range(BLOCK):
                 level = ibuf[lane]
@@ -276,13 +332,15 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
 def _block_runs(frames, y, x0, width, t_off,
                 run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0, run_p1,
                 piece_a, piece_b, piece_len, piece_phi,
-                gain, offset, electrons, frac, whole, out, reset, fast_ok,
+                gain, offset, electrons, frac, whole, out, reset, fast_ok, paper_fast_ok,
                 paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
                 scratch_f, scratch_u):
     """All runs of one chunk for one 64-pixel block and one accumulator set.
 
-    ``scratch_f`` (6, 64) float64 and ``scratch_u`` (3, 64) uint64 are the
+    ``scratch_f`` (7, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
     caller's work rows (allocated once per image row, not per block).
+    ``fast_ok``: modulo reset without per-readout noise; ``paper_fast_ok``:
+    modulo reset with paper-mode noise only.
     """
     ia = scratch_f[0]
     di = scratch_f[1]
@@ -290,10 +348,14 @@ def _block_runs(frames, y, x0, width, t_off,
     s_g = scratch_f[3]
     s_o = scratch_f[4]
     zbuf = scratch_f[5]
+    sdbuf = scratch_f[6]
     s_u1 = scratch_u[0]
     s_u2 = scratch_u[1]
     bbuf = scratch_u[2]
+    pkeys = scratch_u[3]
     blk = x0 // BLOCK
+    if paper_sg2 > 0.0 or paper_sp2 > 0.0:
+        pixel_keys_into(np.uint64(y * width + x0), pkeys)
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]
         n1 = run_stop[r]
@@ -302,7 +364,7 @@ def _block_runs(frames, y, x0, width, t_off,
                              piece_phi, y, x0, ibuf)
             m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                               reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                              key_jitter, zbuf, bbuf)
+                              key_jitter, zbuf, bbuf, pkeys)
             out[n0 - t_off, y, blk] = m
             continue
         t_a = run_ta[r]
@@ -331,6 +393,11 @@ def _block_runs(frames, y, x0, width, t_off,
         elif use_fast:
             _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
                          s_u1, s_g, s_o)
+        elif paper_fast_ok and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset,
+                                           paper_sg2, paper_sp2):
+            _fast_paper(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
+                        paper_sg2, paper_sp2, key_paper, pkeys, ibuf, zbuf, sdbuf, bbuf,
+                        s_u1, s_g, s_o)
         else:
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
@@ -338,7 +405,7 @@ def _block_runs(frames, y, x0, width, t_off,
                     ibuf[lane] = ia[lane] + di[lane] * phi
                 m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                                   reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                                  key_jitter, zbuf, bbuf)
+                                  key_jitter, zbuf, bbuf, pkeys)
                 out[n - t_off, y, blk] = m
 
 
@@ -346,7 +413,7 @@ def _block_runs(frames, y, x0, width, t_off,
 def simulate_chunk(frames, width, t_off,
                    run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0, run_p1,
                    piece_a, piece_b, piece_len, piece_phi,
-                   gain, offset, electrons, frac, whole, out, reset, fast_ok,
+                   gain, offset, electrons, frac, whole, out, reset, fast_ok, paper_fast_ok,
                    paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
                    clean, c_frac, c_whole, c_out, c_gain, c_offset, c_electrons):
     """Simulate readouts ``[run_start[0], run_stop[-1])`` for every pixel.
@@ -358,7 +425,10 @@ def simulate_chunk(frames, width, t_off,
     ``gain``, ``offset`` (H, Wp) float64 and ``electrons`` (H, Wp) float64
     (all −1 when shot noise is off) are the per-pixel charge constants;
     ``frac`` (H, Wp) uint64 and ``whole`` (H, Wp) int64 the accumulator,
-    updated in place.  ``out`` (T, H, Wp/64) uint64 receives the spikes of
+    updated in place.  ``fast_ok`` / ``paper_fast_ok`` allow the vector fast
+    paths (modulo reset without per-readout noise / with paper-mode noise
+    only), taken per run and block where every charge is provably < 1 θ.
+    ``out`` (T, H, Wp/64) uint64 receives the spikes of
     readout ``n`` at ``out[n − t_off]``: bit k of word j is pixel 64·j + k,
     which on a little-endian machine is exactly the little-bit-order packed
     byte layout (viewed as uint8, rows padded to Wp/8 bytes).  When ``clean`` is true the
@@ -367,8 +437,8 @@ def simulate_chunk(frames, width, t_off,
     height = frames.shape[0]
     nblk = frames.shape[1]
     for y in prange(height):
-        scratch_f = np.empty((6, BLOCK), np.float64)
-        scratch_u = np.empty((3, BLOCK), np.uint64)
+        scratch_f = np.empty((7, BLOCK), np.float64)
+        scratch_u = np.empty((4, BLOCK), np.uint64)
         f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
         w = np.empty(BLOCK, np.int64)
         for b in range(nblk):
@@ -380,8 +450,8 @@ def simulate_chunk(frames, width, t_off,
                         run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
                         run_p1, piece_a, piece_b, piece_len, piece_phi,
                         gain[y, sl], offset[y, sl], electrons[y, sl], f, w, out, reset, fast_ok,
-                        paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
-                        scratch_f, scratch_u)
+                        paper_fast_ok, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
+                        key_jitter, scratch_f, scratch_u)
             frac[y, sl] = f
             whole[y, sl] = w
             if clean:
@@ -391,7 +461,8 @@ def simulate_chunk(frames, width, t_off,
                             run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv,
                             run_p0, run_p1, piece_a, piece_b, piece_len, piece_phi,
                             c_gain[y, sl], c_offset[y, sl], c_electrons[y, sl], f, w, c_out,
-                            reset, reset == RESET_MODULO, 0.0, 0.0, np.uint64(0), np.uint64(0),
+                            reset, reset == RESET_MODULO, False, 0.0, 0.0, np.uint64(0),
+                            np.uint64(0),
                             0.0, np.uint64(0), scratch_f, scratch_u)
                 c_frac[y, sl] = f
                 c_whole[y, sl] = w

@@ -98,3 +98,90 @@ def linear_carry_add64(typingctx, acc, level, slope, gain, offset, phi, start):
     return types.uint64(acc, level, slope, gain, offset, phi, start), codegen
 
 
+
+
+@intrinsic
+def paper_carry_add64(typingctx, acc, level, z, sd, gain, offset, start):
+    """One readout of paper-mode noise (DESIGN.md §2.3) for a 64-lane block.
+
+    Lane ``k`` (index ``start + k``) gets the noisy level
+    ``x = max(level + sd·z, 0)``, the charge ``q = (gain·x + offset)·2⁶⁴``
+    (float64, in exactly this order: the scalar kernel's and the NumPy
+    reference's value), ``acc += q`` (wrapping) and its carry bit, returned as
+    in :func:`carry_add64`.  Every charge must lie in [0, 1) threshold (the
+    caller bounds it with the largest normal deviate), else the conversion is
+    undefined.
+    """
+    arrays = (level, z, sd, gain, offset)
+    if not (_is_u64_array(acc) and all(_is_f64_array(a) for a in arrays)
+            and isinstance(start, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        i64 = ir.IntType(64)
+        uvec = ir.VectorType(i64, LANES)
+        fvec = ir.VectorType(ir.DoubleType(), LANES)
+        off = context.cast(builder, args[6], sig.args[6], types.intp)
+
+        def lanes(k, vec):
+            arr = context.make_array(sig.args[k])(context, builder, args[k])
+            return builder.bitcast(builder.gep(arr.data, [off]), vec.as_pointer())
+
+        lv, zv, sv, g, o = (builder.load(lanes(k, fvec), align=8) for k in (1, 2, 3, 4, 5))
+        x = builder.fadd(lv, builder.fmul(sv, zv))
+        zero = ir.Constant(fvec, [0.0] * LANES)
+        x = builder.select(builder.fcmp_ordered(">", x, zero), x, zero)
+        q = builder.fadd(builder.fmul(g, x), o)
+        q = builder.fmul(q, ir.Constant(fvec, [2.0**64] * LANES))
+        pa = lanes(0, uvec)
+        old = builder.load(pa, align=8)
+        new = builder.add(old, builder.fptoui(q, uvec))
+        builder.store(new, pa, align=8)
+        return builder.bitcast(builder.icmp_unsigned("<", new, old), ir.IntType(LANES))
+
+    return types.uint64(acc, level, z, sd, gain, offset, start), codegen
+
+
+@intrinsic
+def high_bits_at_least64(typingctx, values, shift, low, span):
+    """Mask of the 64 lanes of ``values`` (uint64, C-contiguous) whose
+    ``(v >> shift) − low`` is ``>= span`` (unsigned, wrapping): lane ``k`` →
+    bit ``k``.  With ``low``/``span`` the central bins of a table indexed by
+    the top bits, these are the lanes outside it."""
+    if not (_is_u64_array(values) and all(isinstance(t, types.Integer)
+                                          for t in (shift, low, span))):
+        return None
+
+    def codegen(context, builder, sig, args):
+        i64 = ir.IntType(64)
+        uvec = ir.VectorType(i64, LANES)
+        arr = context.make_array(sig.args[0])(context, builder, args[0])
+        v = builder.load(builder.bitcast(arr.data, uvec.as_pointer()), align=8)
+
+        def splat(k):
+            s = context.cast(builder, args[k], sig.args[k], types.uint64)
+            return builder.shuffle_vector(
+                builder.insert_element(ir.Constant(uvec, ir.Undefined), s, i64(0)),
+                ir.Constant(uvec, ir.Undefined),
+                ir.Constant(ir.VectorType(ir.IntType(32), LANES), None))
+
+        rel = builder.sub(builder.lshr(v, splat(1)), splat(2))
+        return builder.bitcast(builder.icmp_unsigned(">=", rel, splat(3)), ir.IntType(LANES))
+
+    return types.uint64(values, shift, low, span), codegen
+
+
+@intrinsic
+def lowest_bit_index(typingctx, mask):
+    """Index of the lowest set bit of a non-zero uint64 (``cttz``)."""
+    if mask != types.uint64:
+        return None
+
+    def codegen(context, builder, sig, args):
+        i64 = ir.IntType(64)
+        fnty = ir.FunctionType(i64, [i64, ir.IntType(1)])
+        fn = builder.module.declare_intrinsic("llvm.cttz", [i64], fnty)
+        return builder.call(fn, [args[0], ir.Constant(ir.IntType(1), 1)])
+
+    return types.uint64(mask), codegen
+

@@ -36,6 +36,9 @@ import numpy as np
 from numba import njit, types
 from numba.extending import intrinsic
 
+from spikesim._simd import LANES as BLOCK_LANES
+from spikesim._simd import high_bits_at_least64, lowest_bit_index
+
 __all__ = [
     "STREAM_INIT",
     "STREAM_PAPER",
@@ -55,7 +58,9 @@ __all__ = [
     "uniform",
     "normal",
     "normal_exact",
+    "NORMAL_ABS_MAX",
     "normals_into",
+    "pixel_keys_into",
     "log_positive",
     "erfinv",
     "pixel_normals",
@@ -87,6 +92,7 @@ _S31 = np.uint64(31)
 _S12 = np.uint64(12)
 _S52 = np.uint64(52)
 _TWO_M52 = 2.0**-52
+_ONE = np.uint64(1)
 _MANT = np.uint64(0x000FFFFFFFFFFFFF)
 _ONE_BITS = np.uint64(0x3FF0000000000000)
 _SQRT2 = 1.4142135623730951
@@ -255,6 +261,10 @@ _S52_BIN = np.uint64(64 - ICDF_BITS)
 _POS_MASK = np.uint64((1 << 40) - 1)
 _TWO_M40 = 2.0**-40
 _TAIL_LO = np.uint64(ICDF_TAIL_BINS)
+# Bound on |normal(bits)| over all 2**64 inputs: the extreme uniforms are
+# 2**-53 and 1 − 2**-53, where Φ⁻¹ is ±8.21 (tested).  Kernels use it to prove
+# that a noisy charge stays below one threshold.
+NORMAL_ABS_MAX = 8.25
 _BODY_SPAN = np.uint64(ICDF_BINS - 2 * ICDF_TAIL_BINS)
 
 
@@ -285,22 +295,31 @@ def normal(bits):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def normals_into(rkey, pixel0, z, bits):
-    """``z[i] = normal(pixel_bits(rkey, pixel0 + i))`` for every i, vectorised:
-    a branch-free table pass (keeping the random bits in ``bits``, uint64 of
-    the same length), then exact inversion for the few tail lanes."""
-    n = z.shape[0]
-    tails = 0
-    for i in range(n):
-        b = pixel_bits(rkey, pixel0 + np.uint64(i))
-        zi, tail = _normal_body(b)
-        z[i] = zi
+def pixel_keys_into(pixel0, keys):
+    """``keys[i] = (pixel0 + i)·G2``: the pixel term of :func:`pixel_bits` for
+    consecutive pixels, computed once per block instead of once per draw."""
+    for i in range(keys.shape[0]):
+        keys[i] = (np.uint64(pixel0) + np.uint64(i)) * _G2
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def normals_into(rkey, pixel_keys, z, bits):
+    """``z[i] = normal(mix64(rkey ^ pixel_keys[i]))`` for the 64 lanes of a block
+    (with ``pixel_keys`` from :func:`pixel_keys_into`, the normals of
+    ``pixel_bits(rkey, pixel0 + i)``), vectorised: a branch-free table pass
+    that keeps the random bits in ``bits``, then exact inversion for the few
+    tail lanes only (found from a 64-bit lane mask).  All arrays hold 64
+    C-contiguous lanes."""
+    rk = np.uint64(rkey)
+    for i in range(BLOCK_LANES):
+        b = mix64(rk ^ pixel_keys[i])
+        z[i], _ = _normal_body(b)
         bits[i] = b
-        tails += 1 if tail else 0
-    if tails:
-        for i in range(n):
-            if (bits[i] >> _S52_BIN) - _TAIL_LO >= _BODY_SPAN:
-                z[i] = normal_exact(bits[i])
+    tails = high_bits_at_least64(bits, _S52_BIN, _TAIL_LO, _BODY_SPAN)
+    while tails:
+        i = lowest_bit_index(tails)
+        z[i] = normal_exact(bits[i])
+        tails &= tails - _ONE
 
 
 @njit(cache=True, error_model="numpy")

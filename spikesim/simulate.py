@@ -236,6 +236,8 @@ class SimulationRun:
         per_readout = noise is not None and noise.per_readout
         reset = _RESET_CODES[sensor.reset]
         fast_ok = reset == _kernels.RESET_MODULO and not per_readout
+        paper_fast_ok = (reset == _kernels.RESET_MODULO and isinstance(noise, PaperNoise)
+                         and pattern.electrons is None and jitter == 0.0)
 
         key = lambda stream: rng.stream_key(self.seed, stream)  # noqa: E731
         frac = _kernels.init_state(key(rng.STREAM_INIT), h, w, wp, sensor.init == "uniform")
@@ -289,8 +291,9 @@ class SimulationRun:
                 c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
                 _kernels.simulate_chunk(
                     key_buffer, w, n0, *sched.kernel_args(), gain, offset, electrons, frac, whole,
-                    out, reset, fast_ok, sg2, sp2, key(rng.STREAM_PAPER), key(rng.STREAM_SHOT),
-                    jitter, key(rng.STREAM_JITTER), self.clean_twin, c_frac, c_whole, c_out,
+                    out, reset, fast_ok, paper_fast_ok, sg2, sp2, key(rng.STREAM_PAPER),
+                    key(rng.STREAM_SHOT), jitter, key(rng.STREAM_JITTER), self.clean_twin,
+                    c_frac, c_whole, c_out,
                     c_gain, c_offset, c_electrons,
                 )
                 sel = self.gt_readouts[(self.gt_readouts >= n0) & (self.gt_readouts < n1)]

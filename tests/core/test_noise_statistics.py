@@ -60,15 +60,28 @@ def test_fast_normal_against_exact_inversion_and_exact_moments():
 
 
 def test_block_normals_equal_scalar_normals():
-    z, scratch = np.empty(64), np.empty(64, np.uint64)
-    tails = 0
-    for n in range(40):  # enough readouts that tail lanes occur
+    z, scratch, keys = np.empty(64), np.empty(64, np.uint64), np.empty(64, np.uint64)
+    rng.pixel_keys_into(np.uint64(640), keys)
+    low = high = 0
+    for n in range(80):  # enough readouts that tail lanes occur
         rk = np.uint64(rng.readout_key(rng.stream_key(3, rng.STREAM_PAPER), n))
-        rng.normals_into(rk, np.uint64(640), z, scratch)
+        rng.normals_into(rk, keys, z, scratch)
         bits = [np.uint64(rng.pixel_bits(rk, np.uint64(640 + i))) for i in range(64)]
+        np.testing.assert_array_equal(scratch, bits)
         np.testing.assert_array_equal(z, [rng.normal(b) for b in bits])
-        tails += sum(int(b) >> 52 < rng.ICDF_TAIL_BINS for b in bits)
-    assert tails > 0
+        low += sum(int(b) >> 52 < rng.ICDF_TAIL_BINS for b in bits)
+        high += sum(int(b) >> 52 >= rng.ICDF_BINS - rng.ICDF_TAIL_BINS for b in bits)
+    assert low > 0 and high > 0
+
+
+def test_normal_deviates_are_bounded_by_normal_abs_max():
+    """Kernels prove noisy charges < 1 θ with this bound: it must hold for the
+    extreme inputs (the uniforms 2**-53 and 1 − 2**-53) and be tight."""
+    extremes = [0, 1, (1 << 12) - 1, (1 << 64) - 1, (1 << 64) - (1 << 12)]
+    z = np.array([rng.normal(np.uint64(b)) for b in extremes])
+    assert np.all(np.abs(z) < rng.NORMAL_ABS_MAX)
+    assert np.abs(z).max() > rng.NORMAL_ABS_MAX - 0.05
+    assert abs(np.abs(z).max() - (-stats.norm.ppf(2.0**-53))) < 1e-9
 
 
 def test_mix64_matches_splitmix64_reference_value():

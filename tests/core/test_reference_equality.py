@@ -67,3 +67,30 @@ def test_every_reset_and_cfa_with_fixed_patterns(reset, cfa):
     scene = _scene(rng, 6, 21, 3, 500.0, 50, 2.0)
     got = ss.simulate(scene, sensor, 50, seed=9, chunk_readouts=17).packed
     np.testing.assert_array_equal(got, reference_simulate(scene, sensor, 50, seed=9))
+
+
+@pytest.mark.parametrize("sigma", [(10.0, 0.0), (2.5, 2.5)])
+@pytest.mark.parametrize("n_keys", [1, 4])
+def test_paper_noise_fast_and_general_blocks_match_reference(sigma, n_keys):
+    """Paper-mode noise has a vector fast path for blocks whose noisy charge is
+    provably below one threshold, and the general step otherwise.  The left
+    two 64-pixel blocks here are dark enough for the fast path, the right
+    ones are not; every block must equal the reference bit for bit."""
+    from spikesim.rng import NORMAL_ABS_MAX
+
+    h, w, clock, n = 5, 250, 1000.0, 60
+    rng = np.random.default_rng(11)
+    imgs = []
+    for _ in range(n_keys):
+        img = rng.random((h, w, 3)) * 0.4
+        img[:, 128:] += 1.2  # bright half: the bound fails there
+        imgs.append(img.astype(np.float32))
+    sensor = ss.Sensor(height=h, width=w, cfa="RGGB", clock_hz=clock,
+                       noise=ss.noise.PaperNoise(*sigma))
+    sd_top = np.sqrt(sigma[0] ** 2 + sigma[1] ** 2 * 255 * 0.4) / 255
+    assert sensor.full_scale_rate * (0.4 + sd_top * NORMAL_ABS_MAX) < 1.0  # dark half fits
+    assert sensor.full_scale_rate * 1.2 >= 0.7  # bright half can reach 1 θ with noise
+    scene = (ss.scenes.Static(imgs[0]) if n_keys == 1
+             else Keyframes(np.array([0.0, 17.3, 31.0, 52.6]) / clock, imgs))
+    got = ss.simulate(scene, sensor, n, seed=4, chunk_readouts=23).packed
+    np.testing.assert_array_equal(got, reference_simulate(scene, sensor, n, seed=4))

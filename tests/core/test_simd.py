@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from spikesim._simd import carry_add64, linear_carry_add64
+from spikesim._simd import (
+    carry_add64,
+    high_bits_at_least64,
+    linear_carry_add64,
+    lowest_bit_index,
+    paper_carry_add64,
+)
 
 TWO64 = 2.0**64
 
@@ -18,6 +24,21 @@ def _carry(acc, inc, start):
 @njit
 def _linear(acc, a, d, g, o, phi, start):
     return linear_carry_add64(acc, a, d, g, o, phi, start)
+
+
+@njit
+def _paper(acc, level, z, sd, g, o, start):
+    return paper_carry_add64(acc, level, z, sd, g, o, start)
+
+
+@njit
+def _outside(values, shift, low, span):
+    return high_bits_at_least64(values, np.uint64(shift), np.uint64(low), np.uint64(span))
+
+
+@njit
+def _ctz(m):
+    return lowest_bit_index(m)
 
 
 def _mask(bits):
@@ -58,3 +79,31 @@ def test_linear_carry_add64_equals_the_scalar_formula():
             m = _linear(got, a, d, g, o, phi, start)
             np.testing.assert_array_equal(got[sl], want)
             assert int(m) == _mask(want < acc[sl])
+
+
+def test_paper_carry_add64_equals_the_scalar_formula_and_clips_negative_light():
+    rng = np.random.default_rng(3)
+    n = 128
+    level, z = rng.random(n) * 0.5, rng.standard_normal(n) * 3
+    sd, g, o = rng.random(n) * 0.05, rng.random(n) + 0.3, rng.random(n) * 0.01
+    level[:10], z[:10] = 0.0, -1.0  # noisy level below 0: clipped, charge = offset
+    acc = rng.integers(0, 2**64, n, dtype=np.uint64)
+    for start in (0, 64):
+        sl = slice(start, start + 64)
+        x = np.maximum(level[sl] + sd[sl] * z[sl], 0.0)
+        q = ((g[sl] * x + o[sl]) * TWO64).astype(np.uint64)
+        with np.errstate(over="ignore"):
+            want = acc[sl] + q
+        got = acc.copy()
+        m = _paper(got, level, z, sd, g, o, start)
+        np.testing.assert_array_equal(got[sl], want)
+        assert int(m) == _mask(want < acc[sl])
+
+
+def test_lane_masks_and_lowest_bit():
+    k = np.array([0, 15, 16, 17, 4079, 4080, 4095] + [100] * 57, np.uint64)
+    values = (k << np.uint64(52)) | np.uint64(12345)
+    # lanes outside the central bins [16, 4080): 0, 15, 4080, 4095
+    assert int(_outside(values, 52, 16, 4064)) == _mask([1, 1, 0, 0, 0, 1, 1] + [0] * 57)
+    for bit in (0, 1, 37, 63):
+        assert int(_ctz(np.uint64(1 << bit) | np.uint64(1 << 63))) == bit

@@ -1,0 +1,52 @@
+"""Keep numba's on-disk cache consistent with the package's sources.
+
+numba validates a cached function against its own source file only (time
+stamp and size).  The kernels inline functions of other modules
+(``spikesim.rng``, ``spikesim._simd``), so when only such a module changes, as
+after ``git pull`` in an editable install, numba would go on loading machine
+code compiled from the old source: silently different bits.  At import the
+package therefore hashes its sources and, when the hash differs from the one
+recorded beside the cache, removes its cache files so that everything is
+compiled afresh.  A user-set ``NUMBA_CACHE_DIR`` is left alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+STAMP_NAME = "spikesim-sources.sha256"
+_CACHE_SUFFIXES = (".nbi", ".nbc")
+
+
+def sources_digest(package_dir: Path) -> str:
+    """SHA-256 over the relative paths and contents of every ``.py`` file."""
+    h = hashlib.sha256()
+    for path in sorted(package_dir.rglob("*.py")):
+        h.update(str(path.relative_to(package_dir)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def sync_cache(package_dir: Path) -> bool:
+    """Remove the numba cache files under ``package_dir`` when its sources
+    changed since the last call; returns True when it removed them.  Never
+    raises for an unwritable install (the cache is then numba's concern)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return False
+    stamp = package_dir / "__pycache__" / STAMP_NAME
+    try:
+        digest = sources_digest(package_dir)
+        if stamp.is_file() and stamp.read_text().strip() == digest:
+            return False
+        for path in package_dir.rglob("__pycache__/*"):
+            if path.suffix in _CACHE_SUFFIXES:
+                path.unlink(missing_ok=True)
+        stamp.parent.mkdir(exist_ok=True)
+        tmp = stamp.with_name(f"{STAMP_NAME}.{os.getpid()}.tmp")
+        tmp.write_text(digest)
+        tmp.replace(stamp)
+        return True
+    except OSError:
+        return False
