@@ -247,14 +247,21 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
         g[lane] = gain[lane]
         o[lane] = offset[lane]
     sd_const = np.sqrt(paper_sg2) * (1.0 / 255.0)
-    if paper_sp2 == 0.0:
+    moving = 0
+    for lane in range(BLOCK):
+        sd[lane] = sd_const
+        moving += 0 if di[lane] == 0.0 else 1
+    # σ depends on the level only, so a static block computes it once
+    sd_per_readout = paper_sp2 > 0.0 and moving > 0
+    if paper_sp2 > 0.0 and moving == 0:
         for lane in range(BLOCK):
-            sd[lane] = sd_const
+            sd[lane] = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * (ia[lane] + di[lane] * 0.0)) * (
+                1.0 / 255.0)
     for n in range(n0, n1):
         phi = (np.float64(n) + 0.5 - t_a) * inv_span
         for lane in range(BLOCK):
             level[lane] = ia[lane] + di[lane] * phi
-        if paper_sp2 > 0.0:
+        if sd_per_readout:
             for lane in range(BLOCK):
                 sd[lane] = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * level[lane]) * (1.0 / 255.0)
         normals_into(readout_key(key_paper, n), pkeys, z, bits)

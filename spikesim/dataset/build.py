@@ -174,10 +174,10 @@ def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
     queue = list(pending)
     ctx = mp.get_context("spawn")
     while queue:
+        lost: list[tuple[dict, BaseException]] = []
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
             futures = {}
-            broken = False
-            while (queue or futures) and not broken:
+            while (queue or futures) and not lost:
                 while queue and len(futures) < 2 * workers:
                     t = queue.pop(0)
                     futures[pool.submit(run_task, t, str(out), threads)] = t
@@ -187,11 +187,13 @@ def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
                     try:
                         on_result(fut.result())
                     except BrokenProcessPool as exc:
-                        broken = True
-                        on_result(_lost(t, exc, out))
-            if broken:  # the pool is unusable: fail what it held, go on with a new one
-                for t in futures.values():
-                    on_result(_lost(t, BrokenProcessPool("worker process died"), out))
+                        lost.append((t, exc))
+            # the pool is unusable: what it still held is lost too
+            lost += [(t, BrokenProcessPool("worker process died")) for t in futures.values()]
+        # only now, with every worker of the broken pool stopped, is each
+        # lost task's file final (complete and renamed, or never renamed)
+        for t, exc in lost:
+            on_result(_lost(t, exc, out))
 
 
 def _lost(task: dict, exc: BaseException, out: Path | None = None) -> dict:
