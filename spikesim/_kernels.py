@@ -234,7 +234,7 @@ def _paper_fits(n0, n1, t_a, inv_span, ia, di, gain, offset, paper_sg2, paper_sp
     return too_big == 0
 
 
-@njit(inline="always", **_opts)
+@njit(**_opts)  # a call per run: inlined, it slowed the noise-free paths (code layout)
 def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
                 paper_sg2, paper_sp2, key_paper, pkeys, level, z, sd, bits, f, g, o):
     """Modulo reset, paper-mode noise only, every noisy charge < 1 θ
