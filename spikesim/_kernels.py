@@ -30,8 +30,10 @@ Model (DESIGN.md §2; Dong et al., AAAI 2024, eq. 1):
 
 Work is split in blocks of 64 pixels of one row (8 packed bytes) run in
 parallel; time is the inner loop of each block so its state stays in
-registers/L1.  Fast paths (modulo reset, no per-readout noise, charge < 1
-threshold per readout) use integer adds only for static segments.
+registers/L1.  Fast paths with modulo reset, taken per run and block where
+every charge is provably < 1 threshold, are one 64-lane vector step per
+readout (``spikesim._simd``): an integer add for static segments, the exact
+linear charge for moving ones, and the noisy charge for paper-mode noise.
 """
 
 from __future__ import annotations
