@@ -261,11 +261,11 @@ _S52_BIN = np.uint64(64 - ICDF_BITS)
 _POS_MASK = np.uint64((1 << 40) - 1)
 _TWO_M40 = 2.0**-40
 _TAIL_LO = np.uint64(ICDF_TAIL_BINS)
+_BODY_SPAN = np.uint64(ICDF_BINS - 2 * ICDF_TAIL_BINS)
 # Bound on |normal(bits)| over all 2**64 inputs: the extreme uniforms are
 # 2**-53 and 1 − 2**-53, where Φ⁻¹ is ±8.21 (tested).  Kernels use it to prove
 # that a noisy charge stays below one threshold.
 NORMAL_ABS_MAX = 8.25
-_BODY_SPAN = np.uint64(ICDF_BINS - 2 * ICDF_TAIL_BINS)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
