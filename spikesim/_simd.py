@@ -22,6 +22,34 @@ def _is_u64_array(t) -> bool:
     return isinstance(t, types.Array) and t.dtype == types.uint64
 
 
+def _is_f64_array(t) -> bool:
+    return isinstance(t, types.Array) and t.dtype == types.float64
+
+
+def _lanes_ptr(context, builder, sig, args, k, off, vec):
+    """Pointer to the ``vec``-typed lanes of array argument ``k``, from index ``off``."""
+    data = context.make_array(sig.args[k])(context, builder, args[k]).data
+    return builder.bitcast(builder.gep(data, [off]), vec.as_pointer())
+
+
+def _splat(builder, vec, value):
+    """``value`` broadcast to every lane of vector type ``vec``."""
+    return builder.shuffle_vector(
+        builder.insert_element(ir.Constant(vec, ir.Undefined), value, ir.IntType(64)(0)),
+        ir.Constant(vec, ir.Undefined),
+        ir.Constant(ir.VectorType(ir.IntType(32), LANES), None))
+
+
+def _add_charge(builder, acc_ptr, charge):
+    """``acc += fptoui(charge·2⁶⁴)`` on 64 lanes; returns the carry bits."""
+    uvec = ir.VectorType(ir.IntType(64), LANES)
+    q = builder.fmul(charge, ir.Constant(charge.type, [2.0**64] * LANES))
+    old = builder.load(acc_ptr, align=8)
+    new = builder.add(old, builder.fptoui(q, uvec))
+    builder.store(new, acc_ptr, align=8)
+    return builder.bitcast(builder.icmp_unsigned("<", new, old), ir.IntType(LANES))
+
+
 @intrinsic
 def carry_add64(typingctx, acc, inc, start):
     """``acc[start:start+64] += inc[start:start+64]`` (uint64, wrapping).
@@ -35,21 +63,15 @@ def carry_add64(typingctx, acc, inc, start):
 
     def codegen(context, builder, sig, args):
         vec = ir.VectorType(ir.IntType(64), LANES)
-        a = context.make_array(sig.args[0])(context, builder, args[0])
-        b = context.make_array(sig.args[1])(context, builder, args[1])
         off = context.cast(builder, args[2], sig.args[2], types.intp)
-        pa = builder.bitcast(builder.gep(a.data, [off]), vec.as_pointer())
-        pb = builder.bitcast(builder.gep(b.data, [off]), vec.as_pointer())
+        pa = _lanes_ptr(context, builder, sig, args, 0, off, vec)
+        pb = _lanes_ptr(context, builder, sig, args, 1, off, vec)
         old = builder.load(pa, align=8)
         new = builder.add(old, builder.load(pb, align=8))
         builder.store(new, pa, align=8)
         return builder.bitcast(builder.icmp_unsigned("<", new, old), ir.IntType(LANES))
 
     return types.uint64(acc, inc, start), codegen
-
-
-def _is_f64_array(t) -> bool:
-    return isinstance(t, types.Array) and t.dtype == types.float64
 
 
 @intrinsic
@@ -69,35 +91,17 @@ def linear_carry_add64(typingctx, acc, level, slope, gain, offset, phi, start):
         return None
 
     def codegen(context, builder, sig, args):
-        i64 = ir.IntType(64)
-        uvec = ir.VectorType(i64, LANES)
+        uvec = ir.VectorType(ir.IntType(64), LANES)
         fvec = ir.VectorType(ir.DoubleType(), LANES)
         off = context.cast(builder, args[6], sig.args[6], types.intp)
-
-        def lanes(k, vec):
-            arr = context.make_array(sig.args[k])(context, builder, args[k])
-            return builder.bitcast(builder.gep(arr.data, [off]), vec.as_pointer())
-
-        def splat(value):
-            return builder.shuffle_vector(
-                builder.insert_element(ir.Constant(fvec, ir.Undefined), value, i64(0)),
-                ir.Constant(fvec, ir.Undefined),
-                ir.Constant(ir.VectorType(ir.IntType(32), LANES), None))
-
-        a, d, g, o = (builder.load(lanes(k, fvec), align=8) for k in (1, 2, 3, 4))
-        phi_v = splat(context.cast(builder, args[5], sig.args[5], types.float64))
+        a, d, g, o = (builder.load(_lanes_ptr(context, builder, sig, args, k, off, fvec), align=8)
+                      for k in (1, 2, 3, 4))
+        phi_v = _splat(builder, fvec, context.cast(builder, args[5], sig.args[5], types.float64))
         level_now = builder.fadd(a, builder.fmul(d, phi_v))
         q = builder.fadd(builder.fmul(g, level_now), o)
-        q = builder.fmul(q, splat(ir.Constant(ir.DoubleType(), 2.0**64)))
-        pa = lanes(0, uvec)
-        old = builder.load(pa, align=8)
-        new = builder.add(old, builder.fptoui(q, uvec))
-        builder.store(new, pa, align=8)
-        return builder.bitcast(builder.icmp_unsigned("<", new, old), ir.IntType(LANES))
+        return _add_charge(builder, _lanes_ptr(context, builder, sig, args, 0, off, uvec), q)
 
     return types.uint64(acc, level, slope, gain, offset, phi, start), codegen
-
-
 
 
 @intrinsic
@@ -118,26 +122,16 @@ def paper_carry_add64(typingctx, acc, level, z, sd, gain, offset, start):
         return None
 
     def codegen(context, builder, sig, args):
-        i64 = ir.IntType(64)
-        uvec = ir.VectorType(i64, LANES)
+        uvec = ir.VectorType(ir.IntType(64), LANES)
         fvec = ir.VectorType(ir.DoubleType(), LANES)
         off = context.cast(builder, args[6], sig.args[6], types.intp)
-
-        def lanes(k, vec):
-            arr = context.make_array(sig.args[k])(context, builder, args[k])
-            return builder.bitcast(builder.gep(arr.data, [off]), vec.as_pointer())
-
-        lv, zv, sv, g, o = (builder.load(lanes(k, fvec), align=8) for k in (1, 2, 3, 4, 5))
+        lv, zv, sv, g, o = (builder.load(_lanes_ptr(context, builder, sig, args, k, off, fvec),
+                                         align=8) for k in (1, 2, 3, 4, 5))
         x = builder.fadd(lv, builder.fmul(sv, zv))
         zero = ir.Constant(fvec, [0.0] * LANES)
         x = builder.select(builder.fcmp_ordered(">", x, zero), x, zero)
         q = builder.fadd(builder.fmul(g, x), o)
-        q = builder.fmul(q, ir.Constant(fvec, [2.0**64] * LANES))
-        pa = lanes(0, uvec)
-        old = builder.load(pa, align=8)
-        new = builder.add(old, builder.fptoui(q, uvec))
-        builder.store(new, pa, align=8)
-        return builder.bitcast(builder.icmp_unsigned("<", new, old), ir.IntType(LANES))
+        return _add_charge(builder, _lanes_ptr(context, builder, sig, args, 0, off, uvec), q)
 
     return types.uint64(acc, level, z, sd, gain, offset, start), codegen
 
@@ -153,17 +147,12 @@ def high_bits_at_least64(typingctx, values, shift, low, span):
         return None
 
     def codegen(context, builder, sig, args):
-        i64 = ir.IntType(64)
-        uvec = ir.VectorType(i64, LANES)
-        arr = context.make_array(sig.args[0])(context, builder, args[0])
-        v = builder.load(builder.bitcast(arr.data, uvec.as_pointer()), align=8)
+        uvec = ir.VectorType(ir.IntType(64), LANES)
+        v = builder.load(_lanes_ptr(context, builder, sig, args, 0, ir.IntType(64)(0), uvec),
+                         align=8)
 
         def splat(k):
-            s = context.cast(builder, args[k], sig.args[k], types.uint64)
-            return builder.shuffle_vector(
-                builder.insert_element(ir.Constant(uvec, ir.Undefined), s, i64(0)),
-                ir.Constant(uvec, ir.Undefined),
-                ir.Constant(ir.VectorType(ir.IntType(32), LANES), None))
+            return _splat(builder, uvec, context.cast(builder, args[k], sig.args[k], types.uint64))
 
         rel = builder.sub(builder.lshr(v, splat(1)), splat(2))
         return builder.bitcast(builder.icmp_unsigned(">=", rel, splat(3)), ir.IntType(LANES))
