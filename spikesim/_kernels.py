@@ -46,7 +46,6 @@ from numba import njit, prange
 from spikesim._simd import carry_add64, linear_carry_add64, paper_carry_add64
 from spikesim.rng import (
     NORMAL_ABS_MAX,
-    normal,
     normals_into,
     pixel_bits,
     pixel_keys_into,
@@ -76,6 +75,27 @@ def _to_fixed(q):
     """Split a non-negative charge (thresholds) into (whole int64, fraction uint64)."""
     w = np.floor(q)
     return np.int64(w), np.uint64((q - w) * TWO64)
+
+
+@njit(**_opts)
+def _log_factorial_table(n):
+    """``log k!`` for k = 0..n−1, by the same ``math.lgamma`` the samplers use."""
+    out = np.empty(n, np.float64)
+    for k in range(n):
+        out[k] = math.lgamma(k + 1.0)
+    return out
+
+
+_LOG_FACTORIAL = _log_factorial_table(4096)  # k ≤ λ + a few √λ for λ up to ~4000
+
+
+@njit(inline="always", **_opts)
+def _log_factorial(k):
+    """``log k!`` of an integer-valued float k ≥ 0: the table's value (identical
+    to ``math.lgamma(k + 1)``, which it stores) or ``math.lgamma`` beyond it."""
+    if k < _LOG_FACTORIAL.shape[0]:
+        return _LOG_FACTORIAL[np.int64(k)]
+    return math.lgamma(k + 1.0)
 
 
 @njit(**_opts)
@@ -118,7 +138,7 @@ def poisson(lam, bits):
         if k < 0.0 or (us < 0.013 and v > us):
             continue
         lhs = math.log(v) + math.log(inv_alpha) - math.log(a / (us * us) + b)
-        if lhs <= -lam + k * loglam - math.lgamma(k + 1.0):
+        if lhs <= -lam + k * loglam - _log_factorial(k):
             return k
 
 
@@ -318,22 +338,18 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
         frac[lane] = s
         whole[lane] = w
     if jitter > 0.0 and m != 0:
-        # the next cycle's threshold is θ(1 + ε)  ⇔  the charge shifts by −ε
-        rk = readout_key(key_jitter, n)
+        # the next cycle's threshold is θ(1 + ε)  ⇔  the charge shifts by −ε;
+        # deviates for all lanes (vectorised), applied where the lane fired
+        normals_into(readout_key(key_jitter, n), pkeys, zbuf, bbuf)
         for lane in range(BLOCK):
-            if (m >> np.uint64(lane)) & _U1:
-                eps = jitter * normal(pixel_bits(rk, pix0 + np.uint64(lane)))
-                ef = np.uint64(min(abs(eps), 0.5) * TWO64)
-                s = frac[lane]
-                if eps > 0.0:
-                    t = s - ef
-                    if t > s:
-                        whole[lane] -= 1
-                else:
-                    t = s + ef
-                    if t < s:
-                        whole[lane] += 1
-                frac[lane] = t
+            fired = ((m >> np.uint64(lane)) & _U1) != 0
+            eps = jitter * zbuf[lane]
+            ef = np.uint64(min(abs(eps), 0.5) * TWO64) if fired else np.uint64(0)
+            s = frac[lane]
+            up = eps > 0.0
+            t = s - ef if up else s + ef
+            whole[lane] += (-1 if up & (t > s) else 0) + (1 if (not up) & (t < s) else 0)
+            frac[lane] = t
     return m
 
 
@@ -363,7 +379,7 @@ def _block_runs(frames, y, x0, width, t_off,
     bbuf = scratch_u[2]
     pkeys = scratch_u[3]
     blk = x0 // BLOCK
-    if paper_sg2 > 0.0 or paper_sp2 > 0.0:
+    if paper_sg2 > 0.0 or paper_sp2 > 0.0 or jitter > 0.0:
         pixel_keys_into(np.uint64(y * width + x0), pkeys)
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]

@@ -6,9 +6,12 @@ shipped quantile table, and a float64 accumulator instead of fixed point) to
 check the kernel bit for bit and to serve as the vectorised-NumPy baseline of
 ``benchmarks/bench_kernel.py``.  Loops over readouts; vectorised over pixels.
 
-Supported: every reset mode, CFA, key-frame layout, fixed patterns, and paper
-(eq. 5) noise.  Not supported: per-readout physical noise (Poisson shot noise,
-threshold jitter), whose kernel implementation is checked statistically.
+Supported: every reset mode, CFA, key-frame layout, fixed patterns, paper
+(eq. 5) noise and the temporal threshold noise of physical mode (after each
+firing the next threshold is θ(1 + ε), ε = σ_t·z clipped to ±½, i.e. the
+charge moves by −ε).  Not supported: Poisson shot noise, whose kernel
+implementation is checked statistically and lane by lane against the scalar
+sampler.
 
 The float64 accumulator differs from the kernel's exact fixed point by
 rounding (~1e-16 θ per readout), which can only change a bit when the charge
@@ -116,7 +119,7 @@ def _mean_radiance(frames: np.ndarray, tau: np.ndarray, n: int) -> np.ndarray:
 
 def reference_simulate(scene, sensor, n_readouts: int, seed: int = 0) -> np.ndarray:
     """Packed spikes (T, H, ceil(W/8)) of ``sensor`` viewing ``scene``, in float64 NumPy."""
-    from spikesim.noise import PaperNoise, fixed_pattern
+    from spikesim.noise import PaperNoise, PhysicalNoise, fixed_pattern
 
     h, w = sensor.shape
     clock = sensor.clock_hz
@@ -126,8 +129,10 @@ def reference_simulate(scene, sensor, n_readouts: int, seed: int = 0) -> np.ndar
     tau = np.where(np.abs(tau - near) < 1e-9, near, tau)
     frames = np.stack([_sensor_view(scene.radiance(t), sensor.cfa) for t in times.tolist()])
     noise = sensor.noise
-    if noise is not None and noise.per_readout and not isinstance(noise, PaperNoise):
-        raise ValueError("the reference supports paper-mode noise and fixed patterns only")
+    if isinstance(noise, PhysicalNoise) and noise.shot_noise:
+        raise ValueError("the reference does not support Poisson shot noise")
+    jitter = noise.temporal_threshold_noise if isinstance(noise, PhysicalNoise) else 0.0
+    key_jitter = rng.stream_key(seed, rng.STREAM_JITTER)
     pattern = fixed_pattern(noise, h, w, sensor.full_scale_rate)
     n_pix = h * w
     if sensor.init == "uniform":
@@ -152,4 +157,8 @@ def reference_simulate(scene, sensor, n_readouts: int, seed: int = 0) -> np.ndar
             acc = np.where(spike, acc - 1.0, acc)
         else:
             acc = np.where(spike, 0.0, acc)
+        if jitter > 0.0:
+            z = normal_np(_pixel_bits_np(_readout_key_np(key_jitter, n), n_pix)).reshape(h, w)
+            eps = jitter * z
+            acc = np.where(spike, acc - np.sign(eps) * np.minimum(np.abs(eps), 0.5), acc)
     return np.packbits(out, axis=-1, bitorder="little")

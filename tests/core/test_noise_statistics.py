@@ -243,3 +243,20 @@ def test_hot_pixel_fraction():
     # the pattern belongs to the chip: same fpn_seed, same pixels, any simulation seed
     c2 = counts(ss.scenes.Static(np.zeros((64, 256))), sensor, 200, seed=99)
     np.testing.assert_array_equal(c2 > 0, hot)
+
+
+def test_log_factorial_table_equals_lgamma_inside_and_beyond_the_table():
+    import math
+
+    from numba import njit
+
+    from spikesim._kernels import _LOG_FACTORIAL, _log_factorial
+
+    @njit
+    def both(k):
+        return _log_factorial(k), math.lgamma(k + 1.0)
+
+    n = _LOG_FACTORIAL.shape[0]
+    for k in [0.0, 1.0, 2.0, 9.0, 10.0, 57.0, 480.0, n - 1.0, float(n), n + 7.0, 1e6]:
+        got, want = both(k)
+        assert got == want, k

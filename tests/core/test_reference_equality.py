@@ -94,3 +94,20 @@ def test_paper_noise_fast_and_general_blocks_match_reference(sigma, n_keys):
              else Keyframes(np.array([0.0, 17.3, 31.0, 52.6]) / clock, imgs))
     got = ss.simulate(scene, sensor, n, seed=4, chunk_readouts=23).packed
     np.testing.assert_array_equal(got, reference_simulate(scene, sensor, n, seed=4))
+
+
+@pytest.mark.parametrize("reset", RESETS)
+def test_temporal_threshold_noise_matches_reference(reset):
+    """Comparator jitter (physical mode): after each firing the next threshold is
+    θ(1 + ε); the kernel applies it in fixed point to the lanes that fired."""
+    rng = np.random.default_rng(5)
+    noise = ss.noise.PhysicalNoise(shot_noise=False, temporal_threshold_noise=0.05)
+    sensor = ss.Sensor(height=5, width=150, cfa="RGGB", clock_hz=500.0, reset=reset,
+                       noise=noise)
+    scene = _scene(rng, 5, 150, 3, 500.0, 60, 1.5)
+    got = ss.simulate(scene, sensor, 60, seed=2, chunk_readouts=13).packed
+    np.testing.assert_array_equal(got, reference_simulate(scene, sensor, 60, seed=2))
+    quiet = ss.Sensor(height=5, width=150, cfa="RGGB", clock_hz=500.0, reset=reset,
+                      noise=ss.noise.PhysicalNoise(shot_noise=False,
+                                                   temporal_threshold_noise=0.0))
+    assert not np.array_equal(got, ss.simulate(scene, quiet, 60, seed=2).packed)
