@@ -152,7 +152,8 @@ def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf):
     Bit for bit :func:`poisson`, in two passes: a branch-free pass runs the
     whole first attempt of the transformed rejection for every lane (squeeze,
     early rejection and the full test with ``log k!`` from the table) and
-    keeps the accepted draws (about 97 % of draws with λ ≥ 10); the other
+    keeps the accepted draws (75 % of draws at λ = 10, 87 % at λ = 480; the
+    squeeze alone settles 35 % and 74 %); the other
     lanes (λ < 10, or a first attempt not accepted) then call
     :func:`poisson`, which repeats that first attempt and goes on.
     ``zbuf``/``bbuf`` are scratch (float64/uint64).
