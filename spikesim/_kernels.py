@@ -123,26 +123,55 @@ def poisson(lam, bits):
             p *= lam / k
             cdf += p
         return k
-    slam = math.sqrt(lam)
-    loglam = log_positive(lam)
-    b = 0.931 + 2.53 * slam
+    loglam, b, a, inv_alpha, v_r = _ptrs_constants(lam)
+    j = np.uint64(0)
+    while True:
+        k, v, us = _ptrs_draw(bits, j, lam, a, b)
+        j += np.uint64(2)
+        if _ptrs_squeeze(us, v, v_r):
+            return k
+        if not _ptrs_not_rejected(k, us, v):
+            continue
+        if _ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - _log_factorial(k):
+            return k
+
+
+@njit(inline="always", **_opts)
+def _ptrs_constants(lam):
+    """Constants of the transformed rejection for mean ``lam`` ≥ 10 (Hörmann
+    1993): ``(log λ, b, a, 1/α, v_r)``."""
+    b = 0.931 + 2.53 * np.sqrt(lam)
     a = -0.059 + 0.02483 * b
     inv_alpha = 1.1239 + 1.1328 / (b - 3.4)
     v_r = 0.9277 - 3.6224 / (b - 2.0)
-    j = np.uint64(0)
-    while True:
-        u = uniform(pixel_bits(bits, j)) - 0.5
-        v = uniform(pixel_bits(bits, j + _U1))
-        j += np.uint64(2)
-        us = 0.5 - abs(u)
-        k = np.floor((2.0 * a / us + b) * u + lam + 0.43)
-        if us >= 0.07 and v <= v_r:
-            return k
-        if k < 0.0 or (us < 0.013 and v > us):
-            continue
-        lhs = log_positive(v) + log_positive(inv_alpha) - log_positive(a / (us * us) + b)
-        if lhs <= -lam + k * loglam - _log_factorial(k):
-            return k
+    return log_positive(lam), b, a, inv_alpha, v_r
+
+
+@njit(inline="always", **_opts)
+def _ptrs_draw(bits, j, lam, a, b):
+    """Attempt ``j`` (even): the candidate ``k``, the uniform ``v`` and ``us = ½ − |u|``."""
+    u = uniform(pixel_bits(bits, j)) - 0.5
+    v = uniform(pixel_bits(bits, j + _U1))
+    us = 0.5 - abs(u)
+    return np.floor((2.0 * a / us + b) * u + lam + 0.43), v, us
+
+
+@njit(inline="always", **_opts)
+def _ptrs_squeeze(us, v, v_r):
+    """The squeeze: accept without the full test."""
+    return (us >= 0.07) & (v <= v_r)
+
+
+@njit(inline="always", **_opts)
+def _ptrs_not_rejected(k, us, v):
+    """False where the attempt is rejected before the full test."""
+    return (k >= 0.0) & ((us >= 0.013) | (v <= us))
+
+
+@njit(inline="always", **_opts)
+def _ptrs_lhs(v, us, a, b, inv_alpha):
+    """Left side of the full acceptance test ``lhs ≤ −λ + k log λ − log k!``."""
+    return log_positive(v) + log_positive(inv_alpha) - log_positive(a / (us * us) + b)
 
 
 @njit(inline="always", **_opts)
@@ -165,23 +194,14 @@ def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf):
         lam = ibuf[lane] * e
         bits = pixel_bits(rkey, pix0 + np.uint64(lane))
         bbuf[lane] = bits
-        # the expressions of poisson()'s first attempt, in the same order
-        lam_r = max(lam, _POISSON_INVERSION_MAX)  # = lam where the result is kept
-        slam = np.sqrt(lam_r)
-        loglam = log_positive(lam_r)
-        b = 0.931 + 2.53 * slam
-        a = -0.059 + 0.02483 * b
-        inv_alpha = 1.1239 + 1.1328 / (b - 3.4)
-        v_r = 0.9277 - 3.6224 / (b - 2.0)
-        u = uniform(pixel_bits(bits, np.uint64(0))) - 0.5
-        v = uniform(pixel_bits(bits, _U1))
-        us = 0.5 - abs(u)
-        k = np.floor((2.0 * a / us + b) * u + lam + 0.43)
-        squeeze = (us >= 0.07) & (v <= v_r)
-        not_rejected = (k >= 0.0) & ((us >= 0.013) | (v <= us))  # poisson()'s `continue`
-        lhs = log_positive(v) + log_positive(inv_alpha) - log_positive(a / (us * us) + b)
+        # poisson()'s first attempt, through the same helpers (so the same bits);
+        # lanes with λ < 10 compute it at λ = 10 and are not kept
+        loglam, b, a, inv_alpha, v_r = _ptrs_constants(max(lam, _POISSON_INVERSION_MAX))
+        k, v, us = _ptrs_draw(bits, np.uint64(0), lam, a, b)
         log_fact = _LOG_FACTORIAL[np.int64(min(max(k, 0.0), table_top))]
-        full = not_rejected & (k <= table_top) & (lhs <= -lam + k * loglam - log_fact)
+        full = (_ptrs_not_rejected(k, us, v) & (k <= table_top)
+                & (_ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - log_fact))
+        squeeze = _ptrs_squeeze(us, v, v_r)
         ok = (lam >= _POISSON_INVERSION_MAX) & (squeeze | full)
         zbuf[lane] = k / e if ok else np.nan
         slow += 0 if ok else 1

@@ -45,6 +45,18 @@ def _mask(bits):
     return int(sum(int(b) << k for k, b in enumerate(bits)))
 
 
+def _check_charge_step(step, acc, charge, start):
+    """``step(acc_copy)`` must add ``charge·2⁶⁴`` (truncated) to lanes
+    ``start..start+63`` and return their carry bits."""
+    sl = slice(start, start + 64)
+    with np.errstate(over="ignore"):
+        want = acc[sl] + (charge * TWO64).astype(np.uint64)
+    got = acc.copy()
+    m = step(got)
+    np.testing.assert_array_equal(got[sl], want)
+    assert int(m) == _mask(want < acc[sl])
+
+
 def test_carry_add64_wraps_and_orders_bits_like_the_packed_layout():
     rng = np.random.default_rng(1)
     acc = rng.integers(0, 2**64, 200, dtype=np.uint64)
@@ -72,13 +84,9 @@ def test_linear_carry_add64_equals_the_scalar_formula():
     for phi in (0.0, 0.37, 1.0):
         for start in (0, 64):
             sl = slice(start, start + 64)
-            q = ((g[sl] * (a[sl] + d[sl] * phi) + o[sl]) * TWO64).astype(np.uint64)
-            with np.errstate(over="ignore"):
-                want = acc[sl] + q
-            got = acc.copy()
-            m = _linear(got, a, d, g, o, phi, start)
-            np.testing.assert_array_equal(got[sl], want)
-            assert int(m) == _mask(want < acc[sl])
+            charge = g[sl] * (a[sl] + d[sl] * phi) + o[sl]
+            _check_charge_step(lambda acc_, phi=phi, start=start:
+                               _linear(acc_, a, d, g, o, phi, start), acc, charge, start)
 
 
 def test_paper_carry_add64_equals_the_scalar_formula_and_clips_negative_light():
@@ -90,14 +98,9 @@ def test_paper_carry_add64_equals_the_scalar_formula_and_clips_negative_light():
     acc = rng.integers(0, 2**64, n, dtype=np.uint64)
     for start in (0, 64):
         sl = slice(start, start + 64)
-        x = np.maximum(level[sl] + sd[sl] * z[sl], 0.0)
-        q = ((g[sl] * x + o[sl]) * TWO64).astype(np.uint64)
-        with np.errstate(over="ignore"):
-            want = acc[sl] + q
-        got = acc.copy()
-        m = _paper(got, level, z, sd, g, o, start)
-        np.testing.assert_array_equal(got[sl], want)
-        assert int(m) == _mask(want < acc[sl])
+        charge = g[sl] * np.maximum(level[sl] + sd[sl] * z[sl], 0.0) + o[sl]
+        _check_charge_step(lambda acc_, start=start: _paper(acc_, level, z, sd, g, o, start),
+                           acc, charge, start)
 
 
 def test_lane_masks_and_lowest_bit():
