@@ -33,6 +33,7 @@ import numba
 import numpy as np
 
 import spikesim as ss
+from spikesim import rng
 from spikesim.reference import reference_simulate
 
 RESULTS = Path(__file__).parent / "results"
@@ -86,6 +87,44 @@ def time_kernel(scene, sensor, n, seed=0, repeats=3):
     return best, first
 
 
+@numba.njit(parallel=True, error_model="numpy")
+def _draw_only(key, height, width, n, deviates, sink):
+    """The random numbers of a paper-noise run and nothing else: per readout and
+    64-pixel block the keyed 64-bit hashes (``deviates=False``) or the normal
+    deviates made from them (``rng.normals_into``), rows in parallel."""
+    for y in numba.prange(height):
+        z = np.empty(64)
+        bits = np.empty(64, np.uint64)
+        keys = np.empty(64, np.uint64)
+        acc = np.uint64(0)
+        for x0 in range(0, width, 64):
+            rng.pixel_keys_into(np.uint64(y * width + x0), keys)
+            for k in range(n):
+                rk = rng.readout_key(key, k)
+                if deviates:
+                    rng.normals_into(rk, keys, z, bits)
+                    acc ^= np.uint64(z[k & 63] > 0.0)
+                else:
+                    for i in range(64):
+                        bits[i] = rng.mix64(rk ^ keys[i])
+                acc ^= bits[k & 63]
+        sink[y] = acc
+
+
+def time_draws(size, n, deviates, repeats=3):
+    """Pixel-readouts/s of :func:`_draw_only` (a ceiling for any kernel that
+    draws one normal deviate per pixel and readout this way)."""
+    sink = np.empty(size, np.uint64)
+    key = rng.stream_key(0, rng.STREAM_PAPER)
+    _draw_only(key, 2, size, 2, deviates, sink)  # compile
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        _draw_only(key, size, size, n, deviates, sink)
+        best = min(best, time.perf_counter() - t0)
+    return size * size * n / best
+
+
 def time_reference(scene, sensor, n, seed=0):
     t0 = time.perf_counter()
     packed = reference_simulate(scene, sensor, n, seed=seed)
@@ -135,6 +174,9 @@ def main(argv=None):
                 row["bit_identical"] = bool(np.array_equal(first[:n_ref], ref))
             rows.append(row)
             print(json.dumps(row), flush=True)
+    draws = {"hashes": time_draws(size, n_noisy, False),
+             "normal deviates": time_draws(size, n_noisy, True)}
+    print(json.dumps({"draws_only_per_s": draws}), flush=True)
     n_long = 2000 if args.quick else 40_000
     rss = {name: peak_rss_mib(size, n_long, name) for name in ("off", "paper GN σ=10")}
     result = {
@@ -144,6 +186,7 @@ def main(argv=None):
         "size": [size, size],
         "cfa": "RGGB",
         "rows": rows,
+        "draws_only_per_s": draws,
         "peak_rss_mib_streaming": {"readouts": n_long, **rss},
         "command": "python benchmarks/bench_kernel.py" + (" --quick" if args.quick else ""),
     }
@@ -177,7 +220,12 @@ def to_markdown(r) -> str:
             f"{'—' if npy is None else ('yes' if row['bit_identical'] else 'NO')} |"
         )
     m = r["peak_rss_mib_streaming"]
+    d = r["draws_only_per_s"]
     lines += [
+        "",
+        "Random numbers alone, same size and threads (no simulation: the draws of a paper-noise",
+        "run, a ceiling for any kernel drawing one keyed normal per pixel and readout):",
+        f"keyed 64-bit hashes {d['hashes']:.3g}/s, normal deviates {d['normal deviates']:.3g}/s.",
         "",
         f"Peak RSS of a fresh process streaming {m['readouts']} readouts (moving scene, output "
         f"discarded per chunk): noise off {m['off']:.0f} MiB, "

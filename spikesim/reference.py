@@ -21,8 +21,6 @@ happen in practice, and the tests state it.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from spikesim import rng
@@ -65,22 +63,42 @@ def _normal_exact_np(bits: np.ndarray) -> np.ndarray:
     return np.sqrt(2.0) * x * g
 
 
-_ICDF_TABLE = np.load(Path(rng.__file__).with_name("tables") / f"normal_icdf_{rng.ICDF_BINS}.npy")
+def _f32_pair(pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two float32 halves (low, high) of packed uint64 table entries, as float64."""
+    low = (pairs & np.uint64(0xFFFFFFFF)).astype(np.uint32).view(np.float32)
+    high = (pairs >> np.uint64(32)).astype(np.uint32).view(np.float32)
+    return low.astype(np.float64), high.astype(np.float64)
+
+
+def _normal_tail_np(bits: np.ndarray) -> np.ndarray:
+    """Tail lanes: the upper tail mirrored (``~bits``), bins of width 2**-20
+    from the shipped tail table, exact inversion below 2**-16."""
+    upper = (bits >> np.uint64(63)) != 0
+    r = np.where(upper, ~bits, bits)
+    m = (r >> np.uint64(64 - rng.TAIL_BITS)).astype(np.int64)
+    t = ((r & rng._TAIL_POS_MASK).astype(np.float64) + 0.5) * 2.0 ** -(64 - rng.TAIL_BITS)
+    mm = np.maximum(m, 1)  # m = 0 is replaced below
+    z = rng._TAIL_Q[mm] + rng._TAIL_D[mm] * t
+    z = np.where(upper, -z, z)
+    exact = m < int(rng._EXACT_SUB)
+    if exact.any():
+        z[exact] = _normal_exact_np(bits[exact])
+    return z
 
 
 def normal_np(bits: np.ndarray) -> np.ndarray:
     """Standard normals, the mapping of ``spikesim.rng.normal``: linear
-    interpolation in the shipped table Φ⁻¹(k/4096) for the central bins, exact
-    inversion in the outermost ``rng.ICDF_TAIL_BINS`` on each side."""
+    interpolation in the body table (float32 pairs ``Q_k, D_k`` of the shipped
+    Φ⁻¹(k/4096)), the finer tail table in the outermost ``rng.ICDF_TAIL_BINS``
+    bins on each side, exact inversion beyond 2**-16."""
     bits = np.asarray(bits, dtype=np.uint64)
-    q = _ICDF_TABLE
     k = (bits >> np.uint64(64 - rng.ICDF_BITS)).astype(np.int64)
     t = (((bits >> np.uint64(12)) & np.uint64(2**40 - 1)).astype(np.float64) + 0.5) * 2.0**-40
+    q, d = _f32_pair(rng._ICDF_PAIRS[k])
+    z = q + d * t
     tail = (k < rng.ICDF_TAIL_BINS) | (k >= rng.ICDF_BINS - rng.ICDF_TAIL_BINS)
-    kb = np.clip(k, 1, rng.ICDF_BINS - 2)  # body bins only; tails replaced below
-    z = q[kb] + (q[kb + 1] - q[kb]) * t
     if tail.any():
-        z[tail] = _normal_exact_np(bits[tail])
+        z[tail] = _normal_tail_np(bits[tail])
     return z
 
 

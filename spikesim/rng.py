@@ -15,16 +15,17 @@ splittable pseudorandom number generators", OOPSLA 2014; constants of
 D. Stafford's "Mix13" variant), a bijection of 64-bit words with full
 avalanche.  Uniforms use the top 52 bits, ``u = ((h >> 12) + 0.5) · 2**-52``
 in (0, 1).  Normal deviates (:func:`normal`) come from a piecewise-linear
-inverse CDF on 4096 equal-probability bins (a table lookup and one
-multiply-add, error < 1.4e-4 in z), with exact inversion in the 16 outermost
-bins on each side: ``z = √2 · erfinv(2u − 1)``, ``erfinv`` evaluated as
+inverse CDF: 4096 equal-probability bins for the body (one packed float32
+table entry, a single lookup, and one multiply-add), bins 256× finer in the
+outer 1/128 of probability, and exact inversion below u = 2**-16 (and above
+1 − 2**-16): ``z = √2 · erfinv(2u − 1)``, ``erfinv`` evaluated as
 ``x · g(w)``, ``w = −log(1 − x²)`` (the variable of M. Giles, "Approximating
 the erfinv function", GPU Computing Gems, 2011), and g a polynomial fitted by
 ``tools/fit_erfinv.py`` (relative error < 1.3e-9 down to u = 2**-53, i.e.
 |z| ≤ 8.3).  The logarithm is computed here from the float's exponent and a
 series so that the kernel loops vectorise (no libm call).
 
-All functions are numba ``njit`` and also run as plain Python on scalars.
+All functions are numba ``njit``.
 """
 
 from __future__ import annotations
@@ -248,32 +249,84 @@ def normal_exact(bits):
     return _SQRT2 * _erfinv_core(2.0 * u - 1.0, 4.0 * u * (1.0 - u))
 
 
-# Fast path: piecewise-linear inverse CDF on ICDF_BINS equal-probability bins.
-# The top 12 bits pick bin k, the next 40 bits the position t in it; the
-# ICDF_TAIL_BINS outermost bins on each side use exact inversion.
+# Fast path: piecewise-linear inverse CDF.  Body: the top ICDF_BITS bits pick
+# one of ICDF_BINS equal-probability bins k, the next 40 bits the position t in
+# it; table entry k packs (Q_k, D_k) as two float32 in one uint64 so that a
+# vector of lanes needs a single gather.  Tails: the ICDF_TAIL_BINS outermost
+# body bins on each side (u < 2**-8 or u > 1 − 2**-8) are refined 256× by the
+# next 8 bits (a float64 table read per tail lane); below 2**-16 exact inversion.
 ICDF_BITS = 12
 ICDF_BINS = 1 << ICDF_BITS
 ICDF_TAIL_BINS = 16
-_ICDF_Q = np.load(Path(__file__).with_name("tables") / f"normal_icdf_{ICDF_BINS}.npy")
-_ICDF_Q[0], _ICDF_Q[-1] = _ICDF_Q[1], _ICDF_Q[-2]  # never used (tail bins); finite
-_ICDF_D = np.diff(_ICDF_Q)
+TAIL_BITS = 20  # tail bins are 2**-TAIL_BITS wide
+EXACT_BELOW = 2.0**-16  # exact inversion for u (or 1 − u) below this
+_TABLES = Path(__file__).with_name("tables")
+_ICDF_Q = np.load(_TABLES / f"normal_icdf_{ICDF_BINS}.npy")  # Φ⁻¹(k/4096), ±inf ends
+_BODY_Q = _ICDF_Q.copy()
+_BODY_Q[0], _BODY_Q[-1] = _BODY_Q[1], _BODY_Q[-2]  # tail bins: never read; finite
+_ICDF_PAIRS = (_BODY_Q[:-1].astype(np.float32).view(np.uint32).astype(np.uint64)
+               | (np.diff(_BODY_Q).astype(np.float32).view(np.uint32).astype(np.uint64)
+                  << np.uint64(32)))
+_TAIL_Q = np.load(_TABLES / f"normal_icdf_tail_{ICDF_BINS}.npy")  # Φ⁻¹(m/2**20)
+_TAIL_Q[0] = _TAIL_Q[1]  # exact inversion there: never read; finite
+_TAIL_D = np.diff(_TAIL_Q)
 _S52_BIN = np.uint64(64 - ICDF_BITS)
 _POS_MASK = np.uint64((1 << 40) - 1)
 _TWO_M40 = 2.0**-40
 _TAIL_LO = np.uint64(ICDF_TAIL_BINS)
 _BODY_SPAN = np.uint64(ICDF_BINS - 2 * ICDF_TAIL_BINS)
+_S_TAIL = np.uint64(64 - TAIL_BITS)
+_TAIL_POS_MASK = np.uint64((1 << (64 - TAIL_BITS)) - 1)
+_TWO_M_TAIL_POS = 2.0 ** -(64 - TAIL_BITS)
+_EXACT_SUB = np.uint64(EXACT_BELOW * 2**TAIL_BITS)
+_LOW32 = np.uint64(0xFFFFFFFF)
+_S32 = np.uint64(32)
+_S63 = np.uint64(63)
 # Bound on |normal(bits)| over all 2**64 inputs: the extreme uniforms are
 # 2**-53 and 1 − 2**-53, where Φ⁻¹ is ±8.21 (tested).  Kernels use it to prove
 # that a noisy charge stays below one threshold.
 NORMAL_ABS_MAX = 8.25
 
 
+@intrinsic
+def _bits_f32(typingctx, x):
+    """Reinterpret a uint32 bit pattern as a float32."""
+    if x != types.uint32:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], llvm_ir.FloatType())
+
+    return types.float32(types.uint32), codegen
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def _normal_body(bits):
-    """(deviate by the linear table, True when the bits fall in a tail bin)."""
+    """(deviate by the body table, True when the bits fall in a tail bin).
+
+    ``z = float64(Q_k) + float64(D_k)·t`` from the packed float32 pair."""
     k = bits >> _S52_BIN
+    pair = _ICDF_PAIRS[k]
+    q = np.float64(_bits_f32(np.uint32(pair & _LOW32)))
+    d = np.float64(_bits_f32(np.uint32(pair >> _S32)))
     t = (np.float64((bits >> _S12) & _POS_MASK) + 0.5) * _TWO_M40
-    return _ICDF_Q[k] + _ICDF_D[k] * t, (k - _TAIL_LO) >= _BODY_SPAN  # unsigned wrap
+    return q + d * t, (k - _TAIL_LO) >= _BODY_SPAN  # unsigned wrap
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _normal_tail(bits):
+    """Deviate for bits in a tail bin (|z| > 2.66): the upper tail is mirrored
+    onto the lower (``~bits`` is the uniform ``1 − u`` exactly), the top 20
+    bits pick a bin of width 2**-20, the other 44 the position in it; exact
+    inversion below u = 2**-16 (|z| > 4.17)."""
+    upper = (bits >> _S63) != 0
+    r = ~bits if upper else bits
+    m = r >> _S_TAIL
+    if m < _EXACT_SUB:
+        return normal_exact(bits)
+    t = (np.float64(r & _TAIL_POS_MASK) + 0.5) * _TWO_M_TAIL_POS
+    z = _TAIL_Q[m] + _TAIL_D[m] * t
+    return -z if upper else z
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -281,17 +334,20 @@ def normal(bits):
     """Standard normal deviate from 64 random bits (the simulator's normal).
 
     ``u = (k + t)/4096`` with bin ``k`` the top 12 bits and ``t`` from the next
-    40: inside the 4064 central bins ``z = Q_k + (Q_{k+1} − Q_k)·t`` with
-    ``Q_k = Φ⁻¹(k/4096)`` (a shipped table, ``tools/make_icdf_table.py``), each
-    bin carrying exactly its probability 1/4096; in the 16 outermost bins on
-    each side (|z| > 2.66, probability 1/128) exact inversion
-    (:func:`normal_exact`).  The interpolation error is below 1.4e-4 in z
-    (largest next to the tails, ~1e-11 at the centre); the variance is off by
-    4e-6 and the fourth moment by 4e-5 (computed exactly from the table in
-    the tests), far below what a simulation can resolve.
+    40: inside the 4064 central bins ``z = Q_k + D_k·t`` with ``Q_k`` and
+    ``D_k = Φ⁻¹((k+1)/4096) − Q_k`` from the shipped table of
+    ``Φ⁻¹(k/4096)`` (``tools/make_icdf_table.py``) rounded to float32, each
+    bin carrying exactly its probability 1/4096.  In the 16 outermost bins on
+    each side (|z| > 2.66, probability 1/128) the same on bins of width 2**-20
+    (a second shipped table, float64), and exact inversion
+    (:func:`normal_exact`) where u or 1 − u is below 2**-16 (|z| > 4.17,
+    probability 3e-5).  The error is below 1.4e-4 in z (interpolation, largest
+    at the edges of the two tables; the float32 rounding adds < 2.4e-7); the
+    variance is off by < 4e-6 and the fourth moment by < 4.5e-5 (computed exactly
+    from the tables in the tests), far below what a simulation can resolve.
     """
     z, tail = _normal_body(bits)
-    return normal_exact(bits) if tail else z
+    return _normal_tail(bits) if tail else z
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -307,7 +363,7 @@ def normals_into(rkey, pixel_keys, z, bits):
     """``z[i] = normal(mix64(rkey ^ pixel_keys[i]))`` for the 64 lanes of a block
     (with ``pixel_keys`` from :func:`pixel_keys_into`, the normals of
     ``pixel_bits(rkey, pixel0 + i)``), vectorised: a branch-free table pass
-    that keeps the random bits in ``bits``, then exact inversion for the few
+    that keeps the random bits in ``bits``, then the tail lookup for the few
     tail lanes only (found from a 64-bit lane mask).  All arrays hold 64
     C-contiguous lanes."""
     rk = np.uint64(rkey)
@@ -318,7 +374,7 @@ def normals_into(rkey, pixel_keys, z, bits):
     tails = high_bits_at_least64(bits, _S52_BIN, _TAIL_LO, _BODY_SPAN)
     while tails:
         i = lowest_bit_index(tails)
-        z[i] = normal_exact(bits[i])
+        z[i] = _normal_tail(bits[i])
         tails &= tails - _ONE
 
 

@@ -32,30 +32,60 @@ def test_normal_generator_matches_standard_normal():
     assert np.sum(big > 4) > 50 and np.sum(big < -4) > 50
 
 
-def test_icdf_table_is_the_normal_quantiles_and_symmetric():
-    q = np.load(Path(rng.__file__).with_name("tables") / f"normal_icdf_{rng.ICDF_BINS}.npy")
+def test_icdf_tables_are_the_normal_quantiles_and_symmetric():
+    tables = Path(rng.__file__).with_name("tables")
+    q = np.load(tables / f"normal_icdf_{rng.ICDF_BINS}.npy")
     k = np.arange(1, rng.ICDF_BINS)
     np.testing.assert_allclose(q[1:-1], stats.norm.ppf(k / rng.ICDF_BINS), rtol=1e-14, atol=1e-15)
     np.testing.assert_array_equal(q[1:-1], -q[-2:0:-1])
+    tail = np.load(tables / f"normal_icdf_tail_{rng.ICDF_BINS}.npy")
+    m = np.arange(1, tail.size)
+    np.testing.assert_allclose(tail[1:], stats.norm.ppf(m / 2.0**rng.TAIL_BITS), rtol=1e-14)
+    # the tail table covers exactly the tail bins of the body table
+    assert tail[-1] == q[rng.ICDF_TAIL_BINS]
 
 
-def test_fast_normal_against_exact_inversion_and_exact_moments():
-    """The table path is within 1.4e-4 of exact inversion (tails are exact);
-    its variance and fourth moment, computed in closed form from the table
-    (z = Q_k + D_k·t with t uniform in each bin), are within 4e-6 and 4e-5."""
-    bits = rng.mix64(np.uint64(12345)) + np.arange(400_000, dtype=np.uint64) * np.uint64(rng.G2)
-    fast = np.array([rng.normal(b) for b in bits[:20_000]])
-    exact = np.array([rng.normal_exact(b) for b in bits[:20_000]])
+def _bins_moments(lo, hi_edge, prob):
+    """Second and fourth moments contributed by bins where z = lo + d·t, t
+    uniform on [0, 1), d = hi_edge − lo, each bin carrying probability ``prob``."""
+    d = hi_edge - lo
+    m2 = np.sum(prob * (lo**2 + lo * d + d**2 / 3))
+    m4 = np.sum(prob * ((lo + d) ** 5 - lo**5) / (5 * d))
+    return m2, m4
+
+
+def test_fast_normal_against_exact_quantiles_and_exact_moments():
+    """Every path of :func:`rng.normal` is within 1.4e-4 of Φ⁻¹(u) (u from all
+    64 bits); its variance and fourth moment, computed in closed form from the
+    float32 body pairs, the tail table and the exact normal beyond 2**-16,
+    are within 4e-6 and 4.5e-5 of 1 and 3."""
+    base = rng.mix64(np.uint64(12345))
+    bits = base + np.arange(40_000, dtype=np.uint64) * np.uint64(rng.G2)
+    # plus inputs forced into each tail region (body tails, fine tails, exact)
+    tails = [np.uint64((int(b) >> s) ^ mirror) for b in bits[:3000]
+             for s in (8, 12, 16, 17) for mirror in (0, (1 << 64) - 1)]
+    bits = np.concatenate([bits, np.array(tails, dtype=np.uint64)])
+    fast = np.array([rng.normal(b) for b in bits])
+    u = (bits >> np.uint64(11)).astype(np.float64) * 2.0**-53 + 2.0**-54  # Φ⁻¹ needs u, 53 bits
+    exact = stats.norm.ppf(u)
     assert np.max(np.abs(fast - exact)) < 1.4e-4
-    tail = np.abs(exact) > -stats.norm.ppf(rng.ICDF_TAIL_BINS / rng.ICDF_BINS)
-    assert tail.any() and np.array_equal(fast[tail], exact[tail])
-    q = rng._ICDF_Q[rng.ICDF_TAIL_BINS:rng.ICDF_BINS - rng.ICDF_TAIL_BINS + 1]
-    lo, d = q[:-1], np.diff(q)
-    a = q[0]  # body is [a, -a]; beyond it the exact normal
-    t_m2 = 2 * (stats.norm.cdf(a) - a * stats.norm.pdf(a))
-    t_m4 = 2 * (3 * stats.norm.cdf(a) - (a**3 + 3 * a) * stats.norm.pdf(a))
-    m2 = np.sum(lo**2 + lo * d + d**2 / 3) / rng.ICDF_BINS + t_m2
-    m4 = np.sum(((lo + d) ** 5 - lo**5) / (5 * d)) / rng.ICDF_BINS + t_m4
+    # where u or 1 − u < 2**-16 the deviate is the exact inversion itself
+    far = np.minimum(u, 1 - u) < rng.EXACT_BELOW * (1 - 2**-40)
+    assert far.sum() > 100
+    np.testing.assert_array_equal(fast[far], [rng.normal_exact(b) for b in bits[far]])
+    # closed-form moments of the generator's distribution (by symmetry, 2 × lower half
+    # where the tables are mirror images; the body uses its float32 pairs as stored)
+    pairs = rng._ICDF_PAIRS[rng.ICDF_TAIL_BINS:rng.ICDF_BINS - rng.ICDF_TAIL_BINS]
+    q = (pairs & np.uint64(0xFFFFFFFF)).astype(np.uint32).view(np.float32).astype(np.float64)
+    d = (pairs >> np.uint64(32)).astype(np.uint32).view(np.float32).astype(np.float64)
+    m2, m4 = _bins_moments(q, q + d, 1 / rng.ICDF_BINS)
+    first = int(rng._EXACT_SUB)
+    tq = rng._TAIL_Q[first:]
+    t2, t4 = _bins_moments(tq[:-1], tq[1:], 2.0**-rng.TAIL_BITS)
+    a = stats.norm.ppf(rng.EXACT_BELOW)  # beyond it the exact normal
+    e2 = stats.norm.cdf(a) - a * stats.norm.pdf(a)
+    e4 = 3 * stats.norm.cdf(a) - (a**3 + 3 * a) * stats.norm.pdf(a)
+    m2, m4 = m2 + 2 * (t2 + e2), m4 + 2 * (t4 + e4)
     assert abs(m2 - 1) < 4e-6 and abs(m4 - 3) < 4.5e-5
 
 
