@@ -50,17 +50,36 @@ def _pixel_bits_np(rkey: np.uint64, n_pixels: int) -> np.ndarray:
     return mix64_np(np.uint64(rkey) ^ p)
 
 
+def _log_positive_np(y: np.ndarray) -> np.ndarray:
+    """``rng.log_positive`` in NumPy, the same float64 operations in the same
+    order (exponent, mantissa folded into [√½, √2), atanh series), so the same
+    bits as the kernel (``np.log`` may differ in the last bit)."""
+    bits = y.view(np.uint64)
+    e = ((bits >> np.uint64(52)).astype(np.int64) - 1023).astype(np.float64)
+    m = ((bits & rng._MANT) | rng._ONE_BITS).view(np.float64)
+    fold = m > rng._SQRT2
+    m = np.where(fold, m * 0.5, m)
+    e = np.where(fold, e + 1.0, e)
+    s = (m - 1.0) / (m + 1.0)
+    s2 = s * s
+    p = np.full_like(s, 1.0 / 15.0)
+    for c in (1.0 / 13.0, 1.0 / 11.0, 1.0 / 9.0, 1.0 / 7.0, 1.0 / 5.0, 1.0 / 3.0, 1.0):
+        p = p * s2 + c
+    return e * rng._LN2 + 2.0 * s * p
+
+
 def _normal_exact_np(bits: np.ndarray) -> np.ndarray:
-    """Exact inversion ``√2·erfinv(2u − 1)`` (same polynomial as ``spikesim.rng``)."""
+    """Exact inversion ``√2·erfinv(2u − 1)`` (same polynomial and operation
+    order as ``spikesim.rng.normal_exact``)."""
     u = ((bits >> np.uint64(12)).astype(np.float64) + 0.5) * 2.0**-52
     x = 2.0 * u - 1.0
-    w = -np.log(4.0 * u * (1.0 - u))
+    w = -_log_positive_np(4.0 * u * (1.0 - u))
     high = w >= rng._W_SPLIT
     s = np.where(high, np.sqrt(w) * rng._HIGH_SCALE - rng._HIGH_SHIFT, w * rng._LOW_SCALE - 1.0)
     g = np.zeros_like(w)
     for lo, hi in zip(rng._G_LOW, rng._G_HIGH, strict=True):
         g = g * s + np.where(high, hi, lo)
-    return np.sqrt(2.0) * x * g
+    return rng._SQRT2 * (x * g)
 
 
 def _f32_pair(pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
