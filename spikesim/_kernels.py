@@ -46,6 +46,7 @@ from numba import njit, prange
 from spikesim._simd import carry_add64, linear_carry_add64, paper_carry_add64
 from spikesim.rng import (
     NORMAL_ABS_MAX,
+    exp_nonpositive,
     log_positive,
     normals_into,
     pixel_bits,
@@ -67,6 +68,8 @@ RUN_PIECES = 1  # one readout whose period contains key times
 
 _U1 = np.uint64(1)
 _POISSON_INVERSION_MAX = 10.0
+_POISSON_INVERSION_CAP = 200  # the inversion search stops here (P(k > 200 | λ < 10) ≈ 0)
+_INV_INT = np.array([0.0] + [1.0 / k for k in range(1, _POISSON_INVERSION_CAP + 1)])  # 1/k
 
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
@@ -103,7 +106,8 @@ def _log_factorial(k):
 def poisson(lam, bits):
     """Poisson deviate with mean ``lam`` from 64 random bits (exact samplers).
 
-    ``lam < 10``: inversion of the CDF with one uniform.  Otherwise the
+    ``lam < 10``: inversion of the CDF with one uniform (sequential search,
+    ``p_k = p_{k−1}·(λ·(1/k))`` from ``p_0 = e**−λ``).  Otherwise the
     transformed rejection with squeeze of W. Hörmann, "The transformed
     rejection method for generating Poisson random variables", Insurance:
     Mathematics and Economics 12 (1993); attempt j uses two uniforms hashed
@@ -115,16 +119,23 @@ def poisson(lam, bits):
         return 0.0
     if lam < _POISSON_INVERSION_MAX:
         u = uniform(bits)
-        p = math.exp(-lam)
+        p = exp_nonpositive(-lam)
         cdf = p
-        k = 0.0
-        while u > cdf and k < 200.0:
-            k += 1.0
-            p *= lam / k
+        k = 0
+        while u > cdf and k < _POISSON_INVERSION_CAP:
+            k += 1
+            p *= lam * _INV_INT[k]
             cdf += p
-        return k
+        return np.float64(k)
+    return _ptrs_from(lam, bits, np.uint64(0))
+
+
+@njit(**_opts)
+def _ptrs_from(lam, bits, j):
+    """The transformed rejection for ``lam`` ≥ 10 from attempt ``j`` (even) on:
+    :func:`poisson` starts at 0, the block sampler at 2 for the lanes whose
+    first attempt it ran and rejected (the same bits either way)."""
     loglam, b, a, inv_alpha, v_r = _ptrs_constants(lam)
-    j = np.uint64(0)
     while True:
         k, v, us = _ptrs_draw(bits, j, lam, a, b)
         j += np.uint64(2)
@@ -175,43 +186,102 @@ def _ptrs_lhs(v, us, a, b, inv_alpha):
 
 
 @njit(inline="always", **_opts)
-def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf):
+def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf, work):
     """``ibuf[i] ← poisson(ibuf[i]·e_i, bits_i)/e_i`` for the 64 lanes of a block.
 
-    Bit for bit :func:`poisson`, in two passes: a branch-free pass runs the
-    whole first attempt of the transformed rejection for every lane (squeeze,
-    early rejection and the full test with ``log k!`` from the table) and
-    keeps the accepted draws (75 % of draws at λ = 10, 87 % at λ = 480; the
-    squeeze alone settles 35 % and 74 %); the other
-    lanes (λ < 10, or a first attempt not accepted) then call
-    :func:`poisson`, which repeats that first attempt and goes on.
-    ``zbuf``/``bbuf`` are scratch (float64/uint64).
+    Bit for bit :func:`poisson`, in up to three passes, the first two
+    branch-free over the lanes:
+
+    * λ ≥ 10: the whole first attempt of the transformed rejection (squeeze,
+      early rejection and the full test with ``log k!`` from the table); it
+      settles 75 % of draws at λ = 10 and 87 % at λ = 480;
+    * λ < 10: the inversion search run in lock-step for all lanes, for as
+      many steps as the block's largest such λ needs (λ + 4√λ + 6; beyond
+      that the search is left to the scalar sampler: P < 1e-5);
+    * the lanes left (first attempt not accepted, or search not finished)
+      go on one by one: the rejection from its second attempt, the search
+      from the start.
+
+    ``zbuf``/``bbuf`` are scratch (float64/uint64), ``work`` (5, 64) float64.
     """
+    lam_v = work[0]
+    n_small = 0
+    small_max = 0.0
+    for lane in range(BLOCK):
+        lam = ibuf[lane] * electrons[lane]
+        lam_v[lane] = lam
+        bbuf[lane] = pixel_bits(rkey, pix0 + np.uint64(lane))
+        small = lam < _POISSON_INVERSION_MAX
+        n_small += 1 if small else 0
+        small_max = max(small_max, lam if small else 0.0)
+    if n_small < BLOCK:
+        _ptrs_first_attempt(lam_v, bbuf, zbuf)
+    else:
+        for lane in range(BLOCK):
+            zbuf[lane] = np.nan
+    if n_small:
+        _inversion_lockstep(lam_v, bbuf, zbuf, work, small_max)
     slow = 0
+    for lane in range(BLOCK):
+        slow += 1 if zbuf[lane] != zbuf[lane] else 0
+    if slow:
+        for lane in range(BLOCK):
+            if zbuf[lane] != zbuf[lane]:  # NaN: not settled by the passes above
+                lam = lam_v[lane]
+                zbuf[lane] = (poisson(lam, bbuf[lane]) if lam < _POISSON_INVERSION_MAX
+                              else _ptrs_from(lam, bbuf[lane], np.uint64(2)))
+    for lane in range(BLOCK):
+        ibuf[lane] = zbuf[lane] / electrons[lane]
+
+
+@njit(inline="always", **_opts)
+def _ptrs_first_attempt(lam_v, bbuf, zbuf):
+    """:func:`poisson`'s first attempt for every lane with λ ≥ 10, branch-free,
+    through the same helpers (so the same bits): ``zbuf`` gets the accepted
+    draws, NaN elsewhere (lanes with λ < 10 compute it at λ = 10, not kept)."""
     table_top = np.float64(_LOG_FACTORIAL.shape[0] - 1)
     for lane in range(BLOCK):
-        e = electrons[lane]
-        lam = ibuf[lane] * e
-        bits = pixel_bits(rkey, pix0 + np.uint64(lane))
-        bbuf[lane] = bits
-        # poisson()'s first attempt, through the same helpers (so the same bits);
-        # lanes with λ < 10 compute it at λ = 10 and are not kept
+        lam = lam_v[lane]
         loglam, b, a, inv_alpha, v_r = _ptrs_constants(max(lam, _POISSON_INVERSION_MAX))
-        k, v, us = _ptrs_draw(bits, np.uint64(0), lam, a, b)
+        k, v, us = _ptrs_draw(bbuf[lane], np.uint64(0), lam, a, b)
         log_fact = _LOG_FACTORIAL[np.int64(min(max(k, 0.0), table_top))]
         full = (_ptrs_not_rejected(k, us, v) & (k <= table_top)
                 & (_ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - log_fact))
         squeeze = _ptrs_squeeze(us, v, v_r)
         ok = (lam >= _POISSON_INVERSION_MAX) & (squeeze | full)
-        zbuf[lane] = k / e if ok else np.nan
-        slow += 0 if ok else 1
-    if slow:
-        for lane in range(BLOCK):
-            if zbuf[lane] != zbuf[lane]:  # NaN: not settled by the first attempt
-                e = electrons[lane]
-                zbuf[lane] = poisson(ibuf[lane] * e, bbuf[lane]) / e
+        zbuf[lane] = k if ok else np.nan
+
+
+@njit(inline="always", **_opts)
+def _inversion_lockstep(lam_v, bbuf, zbuf, work, small_max):
+    """The inversion search of :func:`poisson` for every lane with λ < 10 at
+    once: step ``j`` updates ``p_j``, ``F_j`` and counts the lanes still above
+    their CDF, so after ``J`` steps the count is the draw wherever ``u ≤ F_J``.
+    Writes those draws to ``zbuf``; other λ < 10 lanes keep NaN."""
+    u_v = work[1]
+    p_v = work[2]
+    cdf_v = work[3]
+    k_v = work[4]
     for lane in range(BLOCK):
-        ibuf[lane] = zbuf[lane]
+        lam = lam_v[lane]
+        small = lam < _POISSON_INVERSION_MAX
+        p = exp_nonpositive(-(lam if small else 0.0))
+        u_v[lane] = uniform(bbuf[lane])
+        p_v[lane] = p if small else 0.0  # other lanes: inert
+        cdf_v[lane] = p if small else 0.0
+        k_v[lane] = 0.0
+    steps = min(np.int64(small_max + 4.0 * np.sqrt(small_max) + 6.0), _POISSON_INVERSION_CAP)
+    for j in range(1, steps + 1):
+        inv_j = _INV_INT[j]
+        for lane in range(BLOCK):
+            go = u_v[lane] > cdf_v[lane]  # the scalar loop's condition; stopped lanes freeze
+            p = p_v[lane] * (lam_v[lane] * inv_j)
+            p_v[lane] = p if go else p_v[lane]
+            cdf_v[lane] = cdf_v[lane] + p if go else cdf_v[lane]
+            k_v[lane] += 1.0 if go else 0.0
+    for lane in range(BLOCK):
+        done = (lam_v[lane] < _POISSON_INVERSION_MAX) & (u_v[lane] <= cdf_v[lane])
+        zbuf[lane] = k_v[lane] if done else zbuf[lane]
 
 
 @njit(inline="always", **_opts)
@@ -329,7 +399,7 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
 @njit(inline="always", **_opts)
 def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
                   paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf, bbuf,
-                  pkeys):
+                  pkeys, shot_work):
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
@@ -355,7 +425,8 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
     for lane in range(BLOCK):
         ibuf[lane] = gain[lane] * ibuf[lane] + offset[lane]
     if electrons[0] >= 0.0:
-        _shot_noise_block(ibuf, electrons, readout_key(key_shot, n), pix0, zbuf, bbuf)
+        _shot_noise_block(ibuf, electrons, readout_key(key_shot, n), pix0, zbuf, bbuf,
+                          shot_work)
     m = np.uint64(0)
     for lane in range(BLOCK):
         qw, qf = _to_fixed(ibuf[lane])
@@ -396,7 +467,7 @@ def _block_runs(frames, y, x0, width, t_off,
                 scratch_f, scratch_u):
     """All runs of one chunk for one 64-pixel block and one accumulator set.
 
-    ``scratch_f`` (7, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
+    ``scratch_f`` (12, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
     caller's work rows (allocated once per image row, not per block).
     ``fast_ok``: modulo reset without per-readout noise; ``paper_fast_ok``:
     modulo reset with paper-mode noise only.
@@ -408,6 +479,7 @@ def _block_runs(frames, y, x0, width, t_off,
     s_o = scratch_f[4]
     zbuf = scratch_f[5]
     sdbuf = scratch_f[6]
+    shot_work = scratch_f[7:12]
     s_u1 = scratch_u[0]
     s_u2 = scratch_u[1]
     bbuf = scratch_u[2]
@@ -423,7 +495,7 @@ def _block_runs(frames, y, x0, width, t_off,
                              piece_phi, y, x0, ibuf)
             m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                               reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                              key_jitter, zbuf, bbuf, pkeys)
+                              key_jitter, zbuf, bbuf, pkeys, shot_work)
             out[n0 - t_off, y, blk] = m
             continue
         t_a = run_ta[r]
@@ -464,7 +536,7 @@ def _block_runs(frames, y, x0, width, t_off,
                     ibuf[lane] = ia[lane] + di[lane] * phi
                 m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                                   reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                                  key_jitter, zbuf, bbuf, pkeys)
+                                  key_jitter, zbuf, bbuf, pkeys, shot_work)
                 out[n - t_off, y, blk] = m
 
 
@@ -496,7 +568,7 @@ def simulate_chunk(frames, width, t_off,
     height = frames.shape[0]
     nblk = frames.shape[1]
     for y in prange(height):
-        scratch_f = np.empty((7, BLOCK), np.float64)
+        scratch_f = np.empty((12, BLOCK), np.float64)
         scratch_u = np.empty((4, BLOCK), np.uint64)
         f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
         w = np.empty(BLOCK, np.int64)

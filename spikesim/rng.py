@@ -30,6 +30,7 @@ All functions are numba ``njit``.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import llvmlite.ir as llvm_ir
@@ -63,6 +64,7 @@ __all__ = [
     "normals_into",
     "pixel_keys_into",
     "log_positive",
+    "exp_nonpositive",
     "erfinv",
     "pixel_normals",
     "pixel_uniforms",
@@ -204,6 +206,29 @@ def log_positive(y):
     p = p * s2 + 1.0 / 3.0
     p = p * s2 + 1.0
     return e * _LN2 + 2.0 * s * p
+
+
+# exp: Cody–Waite split of ln 2 (the high part has 32 significant bits, so
+# n·_LN2_HI is exact for |n| < 2**20) and Taylor coefficients 1/k!.
+_INV_LN2 = 1.4426950408889634
+_LN2_HI = 6.93147180369123816490e-01
+_LN2_LO = 1.90821492927058770002e-10
+_EXP_TAYLOR = tuple(1.0 / math.factorial(k) for k in range(13, -1, -1))  # 1/13! … 1/0!
+_EXP_ARG_MIN = -708.0  # below it the result would be subnormal
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def exp_nonpositive(x):
+    """``e**x`` for ``−708 ≤ x ≤ 0`` (relative error < 5e-16), vectorisable
+    (no libm call).  ``x = n·ln 2 + r`` with ``|r| ≤ ½ ln 2`` (Cody & Waite's
+    two-part ln 2), ``e**r`` by its Taylor series to ``r**13`` (remainder
+    < 1e-17), and ``2**n`` added to the exponent bits."""
+    n = np.floor(x * _INV_LN2 + 0.5)
+    r = (x - n * _LN2_HI) - n * _LN2_LO
+    p = 0.0
+    for c in _EXP_TAYLOR:
+        p = p * r + c
+    return _bits_f64(_f64_bits(p) + np.uint64(np.int64(n) << np.int64(52)))
 
 
 # Range normalisation as multiply-adds (divisions by constants do not vectorise

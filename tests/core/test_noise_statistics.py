@@ -147,8 +147,9 @@ def test_poisson_sampler(lam):
 
 
 def test_block_shot_noise_equals_the_scalar_sampler():
-    """The kernel's two-pass block sampler is bit for bit ``poisson`` per lane,
-    for λ = 0, small (inversion), and large (rejection, squeeze or not)."""
+    """The kernel's block sampler is bit for bit ``poisson`` per lane, for
+    λ = 0, small (inversion in lock-step, tiny to just below 10, whole dark
+    blocks too), and large (rejection, squeeze or not)."""
     from numba import njit
 
     from spikesim._kernels import _shot_noise_block
@@ -156,20 +157,56 @@ def test_block_shot_noise_equals_the_scalar_sampler():
     @njit
     def block(charge, electrons, rkey, pix0):
         q = charge.copy()
-        _shot_noise_block(q, electrons, rkey, pix0, np.empty(64), np.empty(64, np.uint64))
+        _shot_noise_block(q, electrons, rkey, pix0, np.empty(64), np.empty(64, np.uint64),
+                          np.empty((5, 64)))
         return q
 
     gen = np.random.default_rng(4)
     electrons = gen.uniform(200.0, 2000.0, 64)
-    for trial in range(30):
+    for trial in range(60):
         charge = gen.uniform(0.0, 0.8, 64) * (gen.random(64) > 0.1)  # some lanes dark
         charge[:8] = gen.uniform(0.0, 0.01, 8)  # λ < 10: inversion
+        charge[8:10] = 10.0 ** gen.uniform(-12, -3, 2) / electrons[8:10]  # λ ≪ 1
+        if trial % 3 == 0:  # a whole dark block
+            charge = gen.uniform(0.0, 10.0, 64) ** gen.uniform(1, 3) / 10.0 ** 2 / electrons
         rkey = np.uint64(rng.readout_key(rng.stream_key(7, rng.STREAM_SHOT), trial))
         got = block(charge, electrons, rkey, np.uint64(128))
         want = [poisson(charge[i] * electrons[i],
                         np.uint64(rng.pixel_bits(rkey, np.uint64(128 + i)))) / electrons[i]
                 for i in range(64)]
         np.testing.assert_array_equal(got, want)
+
+
+def test_lockstep_inversion_leaves_unfinished_searches_to_the_scalar_sampler():
+    """Lanes whose search runs past the block's step count stay unsettled (NaN,
+    then :func:`poisson` finishes them); the settled ones are ``poisson``'s."""
+    from numba import njit
+
+    from spikesim._kernels import _inversion_lockstep
+
+    @njit
+    def lockstep(lam, bits, small_max):
+        z = np.full(64, np.nan)
+        _inversion_lockstep(lam, bits, z, np.empty((5, 64)), small_max)
+        return z
+
+    gen = np.random.default_rng(9)
+    lam = gen.uniform(0.0, 9.9, 64)
+    lam[40:] = gen.uniform(10.0, 500.0, 24)  # not for the inversion: untouched
+    bits = gen.integers(0, 2**63, 64, dtype=np.uint64) * np.uint64(2)
+    lam[:6] = 9.5  # with u = 1 − 2**-53 the search goes far past λ + 4√λ + 6
+    bits[:6] = np.uint64(2**64 - 1)
+    z = lockstep(lam, bits, lam[:40].max())
+    assert np.isnan(z[:6]).all() and np.isnan(z[40:]).all()
+    assert not np.isnan(z[6:40]).any()
+    np.testing.assert_array_equal(z[6:40], [poisson(lam[i], bits[i]) for i in range(6, 40)])
+    assert min(poisson(lam[i], bits[i]) for i in range(6)) > lam[:40].max() + 4 * 3.2 + 6
+
+
+def test_exp_nonpositive_is_accurate():
+    x = np.concatenate([-np.linspace(0.0, 40.0, 40_001), [-1e-300, -300.0, -708.0]])
+    got = np.array([rng.exp_nonpositive(v) for v in x])
+    np.testing.assert_allclose(got, np.exp(x), rtol=5e-16, atol=0)
 
 
 @pytest.mark.parametrize("sigma_g,sigma_p", [(10.0, 0.0), (15.0, 0.0), (3.0, 4.0)])
