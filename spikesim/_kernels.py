@@ -192,15 +192,14 @@ def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf, work):
     Bit for bit :func:`poisson`, in up to three passes, the first two
     branch-free over the lanes:
 
-    * λ ≥ 10: the whole first attempt of the transformed rejection (squeeze,
-      early rejection and the full test with ``log k!`` from the table); it
-      settles 75 % of draws at λ = 10 and 87 % at λ = 480;
+    * λ ≥ 10: the first attempt of the transformed rejection
+      (:func:`_ptrs_first_attempt`); it settles 75 % of draws at λ = 10 and
+      87 % at λ = 480;
     * λ < 10: the inversion search run in lock-step for all lanes, for as
       many steps as the block's largest such λ needs (λ + 4√λ + 6; beyond
-      that the search is left to the scalar sampler: P < 1e-5);
-    * the lanes left (first attempt not accepted, or search not finished)
-      go on one by one: the rejection from its second attempt, the search
-      from the start.
+      that, P < 1e-5, the search is left to the last pass);
+    * the lanes left go on one by one: the rejection from its second attempt,
+      the search from the start.
 
     ``zbuf``/``bbuf`` are scratch (float64/uint64), ``work`` (5, 64) float64.
     """
@@ -223,33 +222,51 @@ def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf, work):
         _inversion_lockstep(lam_v, bbuf, zbuf, work, small_max)
     slow = 0
     for lane in range(BLOCK):
-        slow += 1 if zbuf[lane] != zbuf[lane] else 0
+        slow += 0 if zbuf[lane] >= 0.0 else 1  # NaN or undecided
     if slow:
         for lane in range(BLOCK):
-            if zbuf[lane] != zbuf[lane]:  # NaN: not settled by the passes above
+            z = zbuf[lane]
+            if not z >= 0.0:  # not settled by the passes above
                 lam = lam_v[lane]
-                zbuf[lane] = (poisson(lam, bbuf[lane]) if lam < _POISSON_INVERSION_MAX
-                              else _ptrs_from(lam, bbuf[lane], np.uint64(2)))
+                if lam < _POISSON_INVERSION_MAX:
+                    zbuf[lane] = poisson(lam, bbuf[lane])
+                else:  # attempt 0 rejected: go on from attempt 2; undecided: redo it
+                    first = np.uint64(0) if z == _UNDECIDED else np.uint64(2)
+                    zbuf[lane] = _ptrs_from(lam, bbuf[lane], first)
     for lane in range(BLOCK):
         ibuf[lane] = zbuf[lane] / electrons[lane]
 
 
+_UNDECIDED = -1.0  # an attempt the vector pass cannot judge (k beyond the log k! table)
+
+
+@njit(inline="always", **_opts)
+def _ptrs_attempt(lam, bits, j):
+    """Attempt ``j`` of :func:`_ptrs_from` for ``lam`` ≥ 10 without branches:
+    the draw if accepted (squeeze, or the full test with ``log k!`` from the
+    table), NaN if rejected, :data:`_UNDECIDED` where the full test needs
+    ``log k!`` beyond the table (the caller then runs :func:`_ptrs_from` from
+    this attempt).  The same helpers, so the same bits as the scalar loop."""
+    table_top = np.float64(_LOG_FACTORIAL.shape[0] - 1)
+    loglam, b, a, inv_alpha, v_r = _ptrs_constants(lam)
+    k, v, us = _ptrs_draw(bits, j, lam, a, b)
+    log_fact = _LOG_FACTORIAL[np.int64(min(max(k, 0.0), table_top))]
+    squeeze = _ptrs_squeeze(us, v, v_r)
+    tested = _ptrs_not_rejected(k, us, v)
+    full = tested & (_ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - log_fact)
+    undecided = tested & (k > table_top)
+    return k if squeeze | (full & ~undecided) else (_UNDECIDED if undecided else np.nan)
+
+
 @njit(inline="always", **_opts)
 def _ptrs_first_attempt(lam_v, bbuf, zbuf):
-    """:func:`poisson`'s first attempt for every lane with λ ≥ 10, branch-free,
-    through the same helpers (so the same bits): ``zbuf`` gets the accepted
-    draws, NaN elsewhere (lanes with λ < 10 compute it at λ = 10, not kept)."""
-    table_top = np.float64(_LOG_FACTORIAL.shape[0] - 1)
+    """Attempt 0 for every lane with λ ≥ 10: ``zbuf`` gets the accepted draws,
+    :data:`_UNDECIDED` or NaN elsewhere (lanes with λ < 10 compute it at
+    λ = 10, not kept)."""
     for lane in range(BLOCK):
         lam = lam_v[lane]
-        loglam, b, a, inv_alpha, v_r = _ptrs_constants(max(lam, _POISSON_INVERSION_MAX))
-        k, v, us = _ptrs_draw(bbuf[lane], np.uint64(0), lam, a, b)
-        log_fact = _LOG_FACTORIAL[np.int64(min(max(k, 0.0), table_top))]
-        full = (_ptrs_not_rejected(k, us, v) & (k <= table_top)
-                & (_ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - log_fact))
-        squeeze = _ptrs_squeeze(us, v, v_r)
-        ok = (lam >= _POISSON_INVERSION_MAX) & (squeeze | full)
-        zbuf[lane] = k if ok else np.nan
+        k = _ptrs_attempt(max(lam, _POISSON_INVERSION_MAX), bbuf[lane], np.uint64(0))
+        zbuf[lane] = k if lam >= _POISSON_INVERSION_MAX else np.nan
 
 
 @njit(inline="always", **_opts)

@@ -149,7 +149,8 @@ def test_poisson_sampler(lam):
 def test_block_shot_noise_equals_the_scalar_sampler():
     """The kernel's block sampler is bit for bit ``poisson`` per lane, for
     λ = 0, small (inversion in lock-step, tiny to just below 10, whole dark
-    blocks too), and large (rejection, squeeze or not)."""
+    blocks too), large (rejection, squeeze or not)
+    and beyond the ``log k!`` table (λ > 4096)."""
     from numba import njit
 
     from spikesim._kernels import _shot_noise_block
@@ -167,6 +168,7 @@ def test_block_shot_noise_equals_the_scalar_sampler():
         charge = gen.uniform(0.0, 0.8, 64) * (gen.random(64) > 0.1)  # some lanes dark
         charge[:8] = gen.uniform(0.0, 0.01, 8)  # λ < 10: inversion
         charge[8:10] = 10.0 ** gen.uniform(-12, -3, 2) / electrons[8:10]  # λ ≪ 1
+        charge[10:14] = gen.uniform(2.0, 40.0, 4)  # λ > 4096: log k! beyond the table
         if trial % 3 == 0:  # a whole dark block
             charge = gen.uniform(0.0, 10.0, 64) ** gen.uniform(1, 3) / 10.0 ** 2 / electrons
         rkey = np.uint64(rng.readout_key(rng.stream_key(7, rng.STREAM_SHOT), trial))
