@@ -70,6 +70,7 @@ _U1 = np.uint64(1)
 _POISSON_INVERSION_MAX = 10.0
 _POISSON_INVERSION_CAP = 200  # the inversion search stops here (P(k > 200 | λ < 10) ≈ 0)
 _INV_INT = np.array([0.0] + [1.0 / k for k in range(1, _POISSON_INVERSION_CAP + 1)])  # 1/k
+_UNDECIDED = -1.0  # an attempt the vector pass cannot judge (k beyond the log k! table)
 
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
@@ -237,9 +238,6 @@ def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf, work):
         ibuf[lane] = zbuf[lane] / electrons[lane]
 
 
-_UNDECIDED = -1.0  # an attempt the vector pass cannot judge (k beyond the log k! table)
-
-
 @njit(inline="always", **_opts)
 def _ptrs_attempt(lam, bits, j):
     """Attempt ``j`` of :func:`_ptrs_from` for ``lam`` ≥ 10 without branches:
@@ -251,11 +249,11 @@ def _ptrs_attempt(lam, bits, j):
     loglam, b, a, inv_alpha, v_r = _ptrs_constants(lam)
     k, v, us = _ptrs_draw(bits, j, lam, a, b)
     log_fact = _LOG_FACTORIAL[np.int64(min(max(k, 0.0), table_top))]
-    squeeze = _ptrs_squeeze(us, v, v_r)
     tested = _ptrs_not_rejected(k, us, v)
-    full = tested & (_ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - log_fact)
+    full = (tested & (k <= table_top)
+            & (_ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - log_fact))
     undecided = tested & (k > table_top)
-    return k if squeeze | (full & ~undecided) else (_UNDECIDED if undecided else np.nan)
+    return k if _ptrs_squeeze(us, v, v_r) | full else (_UNDECIDED if undecided else np.nan)
 
 
 @njit(inline="always", **_opts)
