@@ -120,28 +120,25 @@ _HIGH_A = 2.5
 _HIGH_B = 6.164414002968976
 
 
-@intrinsic
-def _f64_bits(typingctx, x):
-    """Reinterpret a float64 as its uint64 bit pattern (no conversion)."""
-    if x != types.float64:
-        return None
+def _reinterpret(src, dst, llvm_dst):
+    """A numba intrinsic reading a ``src`` value's bits as a ``dst`` (same width, no conversion)."""
 
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], llvm_ir.IntType(64))
+    @intrinsic
+    def reinterpret(typingctx, x):
+        if x != src:
+            return None
 
-    return types.uint64(types.float64), codegen
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], llvm_dst)
+
+        return dst(src), codegen
+
+    return reinterpret
 
 
-@intrinsic
-def _bits_f64(typingctx, x):
-    """Reinterpret a uint64 bit pattern as a float64."""
-    if x != types.uint64:
-        return None
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], llvm_ir.DoubleType())
-
-    return types.float64(types.uint64), codegen
+_f64_bits = _reinterpret(types.float64, types.uint64, llvm_ir.IntType(64))
+_bits_f64 = _reinterpret(types.uint64, types.float64, llvm_ir.DoubleType())
+_bits_f32 = _reinterpret(types.uint32, types.float32, llvm_ir.FloatType())
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -311,18 +308,6 @@ _S63 = np.uint64(63)
 # 2**-53 and 1 − 2**-53, where Φ⁻¹ is ±8.21 (tested).  Kernels use it to prove
 # that a noisy charge stays below one threshold.
 NORMAL_ABS_MAX = 8.25
-
-
-@intrinsic
-def _bits_f32(typingctx, x):
-    """Reinterpret a uint32 bit pattern as a float32."""
-    if x != types.uint32:
-        return None
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], llvm_ir.FloatType())
-
-    return types.float32(types.uint32), codegen
 
 
 @njit(cache=True, inline="always", error_model="numpy")
