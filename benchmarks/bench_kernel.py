@@ -14,7 +14,8 @@ Run::
     .venv/bin/python benchmarks/bench_kernel.py            # full size (~3 min)
     .venv/bin/python benchmarks/bench_kernel.py --quick    # small smoke run
 
-Writes ``benchmarks/results/kernel.json`` and ``kernel.md``.
+Writes ``benchmarks/results/kernel.json``, ``kernel.md`` and ``kernel.png``
+(throughput per case against the design targets).
 """
 
 from __future__ import annotations
@@ -195,7 +196,39 @@ def main(argv=None):
     name = "kernel_quick" if args.quick else "kernel"
     (out / f"{name}.json").write_text(json.dumps(result, indent=2))
     (out / f"{name}.md").write_text(to_markdown(result))
+    plot(result, out / f"{name}.png")
     print(to_markdown(result))
+
+
+TARGETS = {"off": 1e10, "noisy": 3e9}  # px·readouts/s on the 2-core machine (the issue)
+
+
+def plot(r, path: Path) -> None:
+    """Horizontal bars of kernel throughput (log scale), one per case, with the
+    targets and the rate of the normal deviates alone as vertical lines."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = r["rows"][::-1]
+    labels = [f"{row['scene']}, {row['noise']}" for row in rows]
+    rates = [row["kernel_px_readouts_per_s"] for row in rows]
+    colours = ["tab:blue" if row["noise"] == "off" else "tab:orange" for row in rows]
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.barh(labels, rates, color=colours)
+    ax.set_xscale("log")
+    ax.axvline(TARGETS["off"], color="tab:blue", ls="--", label="target, noise off")
+    ax.axvline(TARGETS["noisy"], color="tab:orange", ls="--", label="target, per-readout noise")
+    ax.axvline(r["draws_only_per_s"]["normal deviates"], color="k", ls=":",
+               label="normal deviates alone")
+    ax.set_xlabel("pixel-readouts per second")
+    ax.set_title(f"Kernel throughput, {r['size'][0]}×{r['size'][1]} {r['cfa']}, "
+                 f"{os.cpu_count()} cores", fontsize=10)
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def to_markdown(r) -> str:
