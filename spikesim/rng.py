@@ -211,7 +211,6 @@ _INV_LN2 = 1.4426950408889634
 _LN2_HI = 6.93147180369123816490e-01
 _LN2_LO = 1.90821492927058770002e-10
 _EXP_TAYLOR = tuple(1.0 / math.factorial(k) for k in range(13, -1, -1))  # 1/13! … 1/0!
-_EXP_ARG_MIN = -708.0  # below it the result would be subnormal
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -283,8 +282,7 @@ ICDF_TAIL_BINS = 16
 TAIL_BITS = 20  # tail bins are 2**-TAIL_BITS wide
 EXACT_BELOW = 2.0**-16  # exact inversion for u (or 1 − u) below this
 _TABLES = Path(__file__).with_name("tables")
-_ICDF_Q = np.load(_TABLES / f"normal_icdf_{ICDF_BINS}.npy")  # Φ⁻¹(k/4096), ±inf ends
-_BODY_Q = _ICDF_Q.copy()
+_BODY_Q = np.load(_TABLES / f"normal_icdf_{ICDF_BINS}.npy")  # Φ⁻¹(k/4096), ±inf ends
 _BODY_Q[0], _BODY_Q[-1] = _BODY_Q[1], _BODY_Q[-2]  # tail bins: never read; finite
 _ICDF_PAIRS = (_BODY_Q[:-1].astype(np.float32).view(np.uint32).astype(np.uint64)
                | (np.diff(_BODY_Q).astype(np.float32).view(np.uint32).astype(np.uint64)

@@ -17,6 +17,7 @@ from scipy import stats
 import spikesim as ss
 from spikesim import rng
 from spikesim._kernels import poisson
+from spikesim.reference import _f32_pair, normal_np
 
 N = 4000  # readouts
 W = 1024  # pixels per intensity
@@ -45,6 +46,16 @@ def test_icdf_tables_are_the_normal_quantiles_and_symmetric():
     assert tail[-1] == q[rng.ICDF_TAIL_BINS]
 
 
+def _bits_with_forced_tails(seed, n, n_forced):
+    """``n`` hashed 64-bit words plus, from the first ``n_forced``, words forced
+    into each tail region (body tail bins, fine tail bins, exact inversion),
+    on both sides."""
+    bits = rng.mix64(np.uint64(seed)) + np.arange(n, dtype=np.uint64) * np.uint64(rng.G2)
+    forced = [np.uint64((int(b) >> s) ^ mirror) for b in bits[:n_forced]
+              for s in (8, 12, 16, 17) for mirror in (0, (1 << 64) - 1)]
+    return np.concatenate([bits, np.array(forced, dtype=np.uint64)])
+
+
 def _bins_moments(lo, hi_edge, prob):
     """Second and fourth moments contributed by bins where z = lo + d·t, t
     uniform on [0, 1), d = hi_edge − lo, each bin carrying probability ``prob``."""
@@ -59,12 +70,7 @@ def test_fast_normal_against_exact_quantiles_and_exact_moments():
     64 bits); its variance and fourth moment, computed in closed form from the
     float32 body pairs, the tail table and the exact normal beyond 2**-16,
     are within 4e-6 and 4.5e-5 of 1 and 3."""
-    base = rng.mix64(np.uint64(12345))
-    bits = base + np.arange(40_000, dtype=np.uint64) * np.uint64(rng.G2)
-    # plus inputs forced into each tail region (body tails, fine tails, exact)
-    tails = [np.uint64((int(b) >> s) ^ mirror) for b in bits[:3000]
-             for s in (8, 12, 16, 17) for mirror in (0, (1 << 64) - 1)]
-    bits = np.concatenate([bits, np.array(tails, dtype=np.uint64)])
+    bits = _bits_with_forced_tails(12345, 40_000, 3000)
     fast = np.array([rng.normal(b) for b in bits])
     u = (bits >> np.uint64(11)).astype(np.float64) * 2.0**-53 + 2.0**-54  # Φ⁻¹ needs u, 53 bits
     exact = stats.norm.ppf(u)
@@ -76,8 +82,7 @@ def test_fast_normal_against_exact_quantiles_and_exact_moments():
     # closed-form moments of the generator's distribution (by symmetry, 2 × lower half
     # where the tables are mirror images; the body uses its float32 pairs as stored)
     pairs = rng._ICDF_PAIRS[rng.ICDF_TAIL_BINS:rng.ICDF_BINS - rng.ICDF_TAIL_BINS]
-    q = (pairs & np.uint64(0xFFFFFFFF)).astype(np.uint32).view(np.float32).astype(np.float64)
-    d = (pairs >> np.uint64(32)).astype(np.uint32).view(np.float32).astype(np.float64)
+    q, d = _f32_pair(pairs)
     m2, m4 = _bins_moments(q, q + d, 1 / rng.ICDF_BINS)
     first = int(rng._EXACT_SUB)
     tq = rng._TAIL_Q[first:]
@@ -92,12 +97,7 @@ def test_fast_normal_against_exact_quantiles_and_exact_moments():
 def test_reference_normals_equal_kernel_normals():
     """The NumPy reference's deviates are the kernel's, bit for bit, on every
     path (body, refined tails, exact inversion, both sides)."""
-    from spikesim.reference import normal_np
-
-    bits = rng.mix64(np.uint64(7)) + np.arange(30_000, dtype=np.uint64) * np.uint64(rng.G2)
-    forced = [np.uint64((int(b) >> s) ^ mirror) for b in bits[:500]
-              for s in (8, 12, 16, 17) for mirror in (0, (1 << 64) - 1)]
-    bits = np.concatenate([bits, np.array(forced, dtype=np.uint64)])
+    bits = _bits_with_forced_tails(7, 30_000, 500)
     np.testing.assert_array_equal(normal_np(bits), [rng.normal(b) for b in bits])
 
 
