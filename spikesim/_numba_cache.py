@@ -5,25 +5,40 @@ stamp and size).  The kernels inline functions of other modules
 (``spikesim.rng``, ``spikesim._simd``), so when only such a module changes, as
 after ``git pull`` in an editable install, numba would go on loading machine
 code compiled from the old source: silently different bits.  At import the
-package therefore hashes its sources and, when the hash differs from the one
-recorded beside the cache, removes its cache files so that everything is
-compiled afresh.  A user-set ``NUMBA_CACHE_DIR`` is left alone.
+package therefore hashes the sources compiled code can come from and, when the
+hash differs from the one recorded beside the cache, removes its cache files so
+that everything is compiled afresh.  Those sources are the modules that import
+``numba`` or ``llvmlite`` (a jitted function can only call jitted functions and
+intrinsics, which live in such modules) and the shipped ``.npy`` tables the
+kernels load; an edit anywhere else (a docstring in ``analysis/``) keeps the
+cache.  A user-set ``NUMBA_CACHE_DIR`` is left alone.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
+import re
 from pathlib import Path
 
 STAMP_NAME = "spikesim-sources.sha256"
 _CACHE_SUFFIXES = (".nbi", ".nbc")
 
 
+_COMPILER_IMPORT = re.compile(rb"^\s*(?:import|from)\s+(?:numba|llvmlite)\b", re.MULTILINE)
+
+
+def compiled_sources(package_dir: Path) -> list[Path]:
+    """The files compiled code can come from: every ``.py`` module importing
+    numba or llvmlite, and every ``.npy`` table, sorted."""
+    modules = [p for p in package_dir.rglob("*.py") if _COMPILER_IMPORT.search(p.read_bytes())]
+    return sorted(modules + list(package_dir.rglob("*.npy")))
+
+
 def sources_digest(package_dir: Path) -> str:
-    """SHA-256 over the relative paths and contents of every ``.py`` file."""
+    """SHA-256 over the relative paths and contents of :func:`compiled_sources`."""
     h = hashlib.sha256()
-    for path in sorted(package_dir.rglob("*.py")):
+    for path in compiled_sources(package_dir):
         h.update(str(path.relative_to(package_dir)).encode())
         h.update(path.read_bytes())
     return h.hexdigest()

@@ -1,5 +1,6 @@
-"""The numba cache is dropped when any package source changes (numba itself
-only checks each function's own file, not the modules it inlines)."""
+"""The numba cache is dropped when a source of compiled code changes (numba
+itself only checks each function's own file, not the modules it inlines), and
+kept when only other modules change."""
 
 from __future__ import annotations
 
@@ -12,8 +13,10 @@ def _package(tmp_path):
     pkg = tmp_path / "pkg"
     (pkg / "__pycache__").mkdir(parents=True)
     (pkg / "sub" / "__pycache__").mkdir(parents=True)
-    (pkg / "kernels.py").write_text("x = 1\n")
-    (pkg / "sub" / "rng.py").write_text("y = 2\n")
+    (pkg / "kernels.py").write_text("from numba import njit\nx = 1\n")
+    (pkg / "sub" / "rng.py").write_text("import numba\ny = 2\n")
+    (pkg / "sub" / "report.py").write_text('"""Not compiled."""\n')
+    (pkg / "table.npy").write_bytes(b"table")
     return pkg
 
 
@@ -38,7 +41,14 @@ def test_cache_survives_unchanged_sources_and_is_dropped_after_any_edit(tmp_path
     files = _cache_files(pkg)
     assert not sync_cache(pkg)  # nothing changed: the cache is kept
     assert all(f.exists() for f in files)
-    (pkg / "sub" / "rng.py").write_text("y = 3\n")  # an inlined module changes
+    (pkg / "sub" / "report.py").write_text('"""Edited, still not compiled."""\n')
+    assert not sync_cache(pkg)  # a module without compiled code: the cache is kept
+    assert all(f.exists() for f in files)
+    (pkg / "sub" / "rng.py").write_text("import numba\ny = 3\n")  # an inlined module changes
+    assert sync_cache(pkg)
+    assert not any(f.exists() for f in files)
+    files = _cache_files(pkg)
+    (pkg / "table.npy").write_bytes(b"other table")  # a shipped table changes
     assert sync_cache(pkg)
     assert not any(f.exists() for f in files)
     assert not [p for p in (pkg / "__pycache__").iterdir() if p.name.endswith(".tmp")]
