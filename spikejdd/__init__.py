@@ -4,7 +4,8 @@ Public names::
 
     import spikejdd as sj
     sj.reconstruct(spikes, cfa="RGGB", method="tfi+malvar2004", center=None)
-    sj.register_method("mine", fn)          # fn(spikes, cfa, center, rate=0.6, **kw)
+    sj.register_method("mine", fn)          # fn(spikes, cfa, center) -> (H, W, 3)
+    sj.METHODS.register / get / names       # the one Registry object
     sj.list_methods()
     sj.baselines.tfp / tfi, sj.metrics.psnr / ssim, sj.demosaic.demosaic
     sj.data.SpikeWindowDataset              # imports torch on first use
@@ -19,6 +20,8 @@ import importlib
 
 from spikejdd import baselines, demosaic, denoise, metrics, pipelines
 from spikejdd.registry import (
+    METHODS,
+    Registry,
     get_method,
     list_methods,
     reconstruct,
@@ -28,6 +31,8 @@ from spikejdd.registry import (
 
 __all__ = [
     "reconstruct",
+    "METHODS",
+    "Registry",
     "register_method",
     "unregister_method",
     "get_method",
@@ -41,9 +46,10 @@ __all__ = [
     "capture",
     "evaluate",
     "models",
+    "runtime",
 ]
 
-_LAZY = ("data", "capture", "evaluate", "models")
+_LAZY = ("data", "capture", "evaluate", "models", "runtime")
 
 
 def __getattr__(name: str):

@@ -1,7 +1,8 @@
 """Evaluation harness: error (PSNR/SSIM) beside time per frame, for any methods.
 
 * :func:`frames_from_dataset` — GT frames of spikesim HDF5 files with the
-  readout window around each;
+  readout window around each, labelled with their noise and motion (from the
+  sequence metadata);
 * :func:`frames_from_simulation` — the same from a scene simulated in memory;
 * :func:`run` — reconstruct every frame with every method, score it
   (:func:`spikejdd.metrics.score`, every convention labelled) and time it:
@@ -10,14 +11,14 @@
 * :func:`sweep` — the shape of SJDD-Net's Table 1 (AAAI 2024): Gaussian noise
   σ ∈ {0, 5, 10, 15} and random Gaussian–Poisson noise, on an object-motion
   and a camera-motion set simulated on the fly;
-* :func:`write_report` — JSON, Markdown and a speed-against-error PNG.
+* :func:`write_report` — JSON, Markdown (tables per noise label and per
+  motion, image panels of the ground truth and every method on the same
+  crop, the machine as it describes itself) and a speed-against-error PNG.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import platform
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,11 +27,16 @@ import numpy as np
 from tqdm import tqdm
 
 from spikejdd.metrics import score
-from spikejdd.registry import get_method
+from spikejdd.registry import call_method, get_method
+from spikejdd.runtime import describe_machine, machine_info
 from spikesim.errors import bad_value
 
 __all__ = ["Frame", "frames_from_dataset", "frames_from_simulation", "run", "sweep",
-           "write_report", "SWEEP_LEVELS", "SWEEP_SETS", "machine_info"]
+           "write_report", "SWEEP_LEVELS", "SWEEP_SETS", "machine_info", "sequence_labels",
+           "DEFAULT_CONTEXT"]
+
+#: Readouts cut around each GT frame by default (fewer where the stream is shorter).
+DEFAULT_CONTEXT = 41
 
 HEADLINE = ("PSNR[linear]", "SSIM-gauss11[linear]", "PSNR[srgb]", "SSIM-gauss11[srgb]")
 
@@ -55,27 +61,74 @@ def _check_context(context: int) -> int:
     return context
 
 
-def frames_from_dataset(path, context: int = 41, per_sequence: int = 1) -> list[Frame]:
+def sequence_labels(meta: dict) -> dict:
+    """``{"noise": ..., "motion": ...}`` of a sequence, read from its metadata.
+
+    Noise: the dataset builder's label when there is one, else ``none``,
+    ``GN<σ_g>``, ``GPN`` or ``physical`` from the sensor's noise model.
+    Motion: the scene's motion (``pan``, ``zoom``, ...), ``object`` for
+    procedural scenes with built-in object motion, ``static``, or ``video``.
+    """
+    dataset = meta.get("dataset") or {}
+    noise = (meta.get("sensor") or {}).get("noise") or None
+    label = dataset.get("noise_label")
+    if not label:
+        if not noise:
+            label = "none"
+        elif noise.get("type") == "paper":
+            sg, sp = float(noise.get("sigma_g", 0.0)), float(noise.get("sigma_p", 0.0))
+            label = "GPN" if sp > 0 else f"GN{sg:g}"
+        else:
+            label = str(noise.get("type", "other"))
+    scene = meta.get("scene") or {}
+    spec = dataset.get("scene_spec") or {}
+    motion = scene.get("motion") or spec.get("motion")
+    if not motion:
+        kind = scene.get("type") or spec.get("kind")
+        motion = {"procedural": "object", "static": "static", "video": "video"}.get(kind,
+                                                                                  "unknown")
+    return {"noise": str(label), "motion": str(motion)}
+
+
+def _fit(g: int, n: int) -> int:
+    """Largest odd window centred on readout ``g`` of an ``n``-readout stream."""
+    return 2 * min(g, n - 1 - g) + 1
+
+
+def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1) -> list[Frame]:
     """Frames of a spikesim file or folder: up to ``per_sequence`` GT readouts per
-    sequence (spread evenly over those with a full ``context``-readout window)."""
+    sequence (spread evenly over those with a full ``context``-readout window).
+
+    ``context=None`` takes :data:`DEFAULT_CONTEXT` (41) readouts, or per
+    sequence the largest centred window that fits around its GT readouts when
+    41 does not (a dataset of 39-readout windows gives 39); each frame records
+    the context it got.  An explicit ``context`` that fits no GT readout raises.
+    """
     from spikesim.io import open_dataset
 
-    _check_context(context)
+    if context is not None:
+        _check_context(context)
     ds = open_dataset(path)
     frames = []
     for name in ds.names:
         seq = ds.sequence(name)
-        half = context // 2
+        n = seq.n_readouts
+        length = context
+        if length is None:
+            fits = [_fit(int(g), n) for g in seq.gt_index if 0 <= g < n]
+            length = min(DEFAULT_CONTEXT, max(fits, default=0))
+        half = length // 2
         ok = [(k, int(g)) for k, g in enumerate(seq.gt_index)
-              if g - half >= 0 and g - half + context <= seq.n_readouts]
+              if length and g - half >= 0 and g - half + length <= n]
         if not ok:
             continue
         pick = np.unique(np.linspace(0, len(ok) - 1, min(per_sequence, len(ok))).round())
         rate = float((seq.meta.get("sensor") or {}).get("full_scale_rate", 0.6))
+        group = sequence_labels(seq.meta)
         for j in pick.astype(int):
             k, g = ok[j]
-            frames.append(Frame(name, g, seq.read_window(g - half, context), half, seq.cfa,
-                                rate, seq.read_gt(k)))
+            frames.append(Frame(name, g, seq.read_window(g - half, length), half, seq.cfa,
+                                rate, seq.read_gt(k), dict(group)))
         if hasattr(seq, "close"):
             seq.close()
     if not frames:
@@ -111,32 +164,45 @@ def _time_call(fn, repeats: int):
 
 
 def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: bool = True,
-        outputs: dict | None = None) -> dict:
+        outputs: dict | None = None, device: str | None = None) -> dict:
     """Score and time every method on every frame; see the module doc for the timing rule.
 
     When ``outputs`` is a dict it receives each reconstruction under
     ``(method, frame index)`` (for image panels, without reconstructing again).
+    ``device`` reaches methods that take one (torch methods); torch threads
+    are a per-process setting (:func:`spikejdd.runtime.set_threads`).  Each
+    row records the readouts the method used (``window``) when it says.
     """
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise bad_value("repeats", repeats, "an integer >= 1")
     if not frames:
         raise bad_value("frames", frames, "at least one frame")
     fns = {m: get_method(m) for m in methods}  # validates every name up front
+    opts = {} if device is None else {"device": device}
     rows = []
     bar = tqdm(total=len(frames) * len(methods), desc="evaluate", disable=not progress)
     for m, fn in fns.items():
+        bar.set_postfix_str(f"{m} (warm-up)")
         f0 = frames[0]
-        fn(f0.spikes, f0.cfa, f0.center, rate=f0.rate)  # warm-up, not timed
+        call_method(fn, f0.spikes, f0.cfa, f0.center, rate=f0.rate, **opts)  # not timed
+        bar.set_postfix_str(m)
         for i, f in enumerate(frames):
-            out, sec = _time_call(lambda f=f, fn=fn: fn(f.spikes, f.cfa, f.center, rate=f.rate),
-                                  repeats)
+            out, sec = _time_call(lambda f=f, fn=fn: call_method(
+                fn, f.spikes, f.cfa, f.center, rate=f.rate, **opts), repeats)
             if outputs is not None:
                 outputs[(m, i)] = out
             rows.append({"method": m, "sequence": f.sequence, "readout": f.readout,
-                         **f.group, "seconds": sec, **score(out, f.gt)})
+                         **f.group, "context": int(f.spikes.shape[0]),
+                         "window": fn.window_for(int(f.spikes.shape[0])),
+                         "seconds": sec, **score(out, f.gt)})
             bar.update()
     bar.close()
-    return {"rows": rows, "summary": summarize(rows, methods)}
+    result = {"rows": rows, "summary": summarize(rows, methods),
+              "runtime": {"device": device or "cpu", "repeats": repeats}}
+    for key in ("noise", "motion"):
+        if any(key in r for r in rows):
+            result[f"by_{key}"] = summarize(rows, methods, by=(key,))
+    return result
 
 
 def summarize(rows: list[dict], methods: list[str], by: tuple[str, ...] = ()) -> dict:
@@ -152,15 +218,10 @@ def summarize(rows: list[dict], methods: list[str], by: tuple[str, ...] = ()) ->
                      if "[" in lab}
             entry["ms_per_frame"] = 1000.0 * float(np.mean([r["seconds"] for r in rs]))
             entry["frames"] = len(rs)
+            entry["windows"] = sorted({int(r["window"]) for r in rs
+                                       if r.get("window") is not None})
             out.setdefault(m, {})["/".join(str(k) for k in key) or "all"] = entry
     return out
-
-
-def machine_info() -> dict:
-    return {"machine": platform.machine(), "processor": platform.processor() or "unknown",
-            "cpus": os.cpu_count(), "python": platform.python_version(),
-            "note": "2-core AMD EPYC VM shared with other work while measuring; times are "
-                    "indicative (median of repeats, warm-up excluded)"}
 
 
 # --- sweep -----------------------------------------------------------------
@@ -179,8 +240,13 @@ GPN_RANGE = {"sigma_g": (0.0, 15.0), "sigma_p": (0.0, 1.0)}
 
 
 def sweep(methods: list[str], size=(64, 96), context: int = 41, frames_per_scene: int = 2,
-          repeats: int = 3, seed: int = 0, progress: bool = True) -> dict:
-    """Table-1-shaped sweep on sets simulated on the fly (see module doc)."""
+          repeats: int = 3, seed: int = 0, progress: bool = True, outputs: dict | None = None,
+          device: str | None = None, frames_out: list | None = None) -> dict:
+    """Table-1-shaped sweep on sets simulated on the fly (see module doc).
+
+    ``outputs`` and ``device`` as in :func:`run`; a ``frames_out`` list
+    receives the simulated frames (for :func:`write_report`'s image panels).
+    """
     import spikesim as ss
     from spikesim.scenes.procedural import procedural
 
@@ -203,8 +269,12 @@ def sweep(methods: list[str], size=(64, 96), context: int = 41, frames_per_scene
         seq = f"{name}-{motion}" if motion else name
         frames += frames_from_simulation(
             scene, sensor, seq, gt_readouts, context, seed=seed,
-            group={"set": set_name, "noise": label, "sigma_g": sg, "sigma_p": sp})
-    result = run(frames, methods, repeats=repeats, progress=progress)
+            group={"set": set_name, "noise": label, "motion": motion or "object",
+                   "sigma_g": sg, "sigma_p": sp})
+    result = run(frames, methods, repeats=repeats, progress=progress, outputs=outputs,
+                 device=device)
+    if frames_out is not None:
+        frames_out.extend(frames)
     result["table"] = summarize(result["rows"], methods, by=("set", "noise"))
     result["config"] = {"size": list(size), "context": context,
                         "frames_per_scene": frames_per_scene,
@@ -215,71 +285,188 @@ def sweep(methods: list[str], size=(64, 96), context: int = 41, frames_per_scene
 
 
 # --- report ----------------------------------------------------------------
-def _md_table(result: dict, methods: list[str]) -> list[str]:
-    lines = ["| method | " + " | ".join(HEADLINE) + " | ms/frame |",
-             "|---" * (len(HEADLINE) + 2) + "|"]
+CONVENTIONS = ("PSNR peak 1.0, RGB, clamp [0,1], no crop; SSIM gauss11 = 11x11 Gaussian sigma "
+               "1.5, uniform7 = 7x7 uniform (scikit-image); [linear] = linear light, [srgb] = "
+               "sRGB-encoded; time = median of the timed calls per frame after one untimed "
+               "warm-up call per method, wall clock")
+#: Largest crop (pixels per side) shown in the image panels.
+PANEL_CROP = 128
+
+
+def _windows(e: dict) -> str:
+    w = e.get("windows") or []
+    if not w:
+        return "-"
+    return str(w[0]) if len(w) == 1 else f"{w[0]}-{w[-1]}"
+
+
+def _md_table(summary: dict, methods: list[str]) -> list[str]:
+    lines = ["| method | " + " | ".join(HEADLINE) + " | ms/frame | readouts used | frames |",
+             "|---" * (len(HEADLINE) + 4) + "|"]
     for m in methods:
-        e = result["summary"][m]["all"]
+        e = summary[m]["all"]
         vals = [f"{e[k]:.2f}" if k.startswith("PSNR") else f"{e[k]:.4f}" for k in HEADLINE]
-        lines.append(f"| {m} | " + " | ".join(vals) + f" | {e['ms_per_frame']:.1f} |")
+        lines.append(f"| {m} | " + " | ".join(vals) +
+                     f" | {e['ms_per_frame']:.1f} | {_windows(e)} | {e['frames']} |")
     return lines
 
 
-def write_report(result: dict, methods: list[str], stem, command: str = "") -> list[Path]:
-    """Write ``stem.json``, ``stem.md`` and ``stem.png``; returns the paths."""
+def _group_table(table: dict, methods: list[str], title: str) -> list[str]:
+    cols = sorted({k for m in methods for k in table.get(m, {})})
+    lines = ["", f"## {title}: PSNR[linear] dB / SSIM-gauss11[linear] (frames)", "",
+             "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for m in methods:
+        cells = []
+        for c in cols:
+            e = table.get(m, {}).get(c)
+            cells.append("-" if e is None else f"{e['PSNR[linear]']:.2f} / "
+                         f"{e['SSIM-gauss11[linear]']:.3f} ({e['frames']})")
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _srgb8(img: np.ndarray) -> np.ndarray:
+    from spikejdd.metrics import srgb_encode
+
+    return (np.clip(srgb_encode(np.clip(img, 0.0, 1.0)), 0, 1) * 255 + 0.5).astype(np.uint8)
+
+
+def panel_image(tiles: list[np.ndarray], labels: list[str], crop: int = PANEL_CROP) -> np.ndarray:
+    """Side-by-side sRGB 8-bit panel of linear (H, W, 3) images, the same centred crop of each
+    (at most ``crop`` pixels a side), small crops enlarged to >= 96 px (nearest neighbour),
+    each under a label strip."""
+    import cv2
+
+    h, w = tiles[0].shape[:2]
+    ch, cw = min(h, crop), min(w, crop)
+    top, left = (h - ch) // 2, (w - cw) // 2
+    scale = max(1, int(np.ceil(96 / max(ch, cw))))
+    strip = 14
+    out = []
+    for img, label in zip(tiles, labels, strict=True):
+        t = _srgb8(img[top:top + ch, left:left + cw])
+        t = np.repeat(np.repeat(t, scale, axis=0), scale, axis=1)
+        head = np.full((strip, t.shape[1], 3), 255, np.uint8)
+        text = label if len(label) * 6 <= t.shape[1] else label[: max(1, t.shape[1] // 6 - 1)]
+        cv2.putText(head, text, (2, strip - 4), cv2.FONT_HERSHEY_PLAIN, 0.8, (0, 0, 0), 1,
+                    cv2.LINE_AA)
+        tile = np.concatenate([head, t], axis=0)
+        out += [tile, np.full((tile.shape[0], 2, 3), 255, np.uint8)]
+    return np.concatenate(out[:-1], axis=1)
+
+
+def _pick_panels(frames: list[Frame], limit: int) -> list[int]:
+    """One frame per (noise, motion) group first, then the rest, up to ``limit``."""
+    seen, first, rest = set(), [], []
+    for i, f in enumerate(frames):
+        key = (f.group.get("noise"), f.group.get("motion"))
+        (rest if key in seen else first).append(i)
+        seen.add(key)
+    return (first + rest)[:limit]
+
+
+def _write_panels(frames, outputs, methods, result, folder: Path, limit: int) -> list[str]:
+    import cv2
+
+    folder.mkdir(parents=True, exist_ok=True)
+    psnr = {(r["method"], r["sequence"], r["readout"]): r["PSNR[linear]"]
+            for r in result["rows"]}
+    md = []
+    for i in _pick_panels(frames, limit):
+        f = frames[i]
+        labels = ["ground truth"] + list(methods)
+        img = panel_image([f.gt] + [outputs[(m, i)] for m in methods], labels)
+        name = f"{i:03d}_{f.sequence}_{f.readout}.png".replace("/", "_")
+        if not cv2.imwrite(str(folder / name), img[..., ::-1]):
+            raise OSError(f"could not write {folder / name}")
+        group = ", ".join(f"{k} {f.group[k]}" for k in ("noise", "motion") if k in f.group)
+        scores = "; ".join(f"{m} {psnr[(m, f.sequence, f.readout)]:.2f} dB" for m in methods)
+        md += [f"**{f.sequence}**, readout {f.readout}" + (f" ({group})" if group else "") +
+               f": {scores}", "", f"![{f.sequence} {f.readout}]({folder.name}/{name})", ""]
+    return md
+
+
+def write_report(result: dict, methods: list[str], stem, command: str = "",
+                 frames: list[Frame] | None = None, outputs: dict | None = None,
+                 panels: int = 6) -> list[Path]:
+    """Write ``stem.json``, ``stem.md`` and ``stem.png`` (and ``stem_panels/*.png``).
+
+    The Markdown holds the machine as it describes itself
+    (:func:`spikejdd.runtime.machine_info`), the mean table, tables per noise
+    label and per motion, and — given ``frames`` and the ``outputs`` of
+    :func:`run` — up to ``panels`` image panels (ground truth and every
+    method on the same crop).  Returns the paths written.
+    """
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
-    result = dict(result, methods=methods, machine=machine_info(), command=command,
-                  conventions="PSNR peak 1.0, RGB, clamp [0,1], no crop; SSIM gauss11 = 11x11 "
-                              "Gaussian sigma 1.5, uniform7 = 7x7 uniform (scikit-image); "
-                              "[linear] = linear light, [srgb] = sRGB-encoded")
+    machine = machine_info()
+    machine["description"] = describe_machine(machine)
+    result = dict(result, methods=methods, machine=machine, command=command,
+                  conventions=CONVENTIONS)
     paths = [stem.with_suffix(".json"), stem.with_suffix(".md"), stem.with_suffix(".png")]
     paths[0].write_text(json.dumps(result, indent=1, default=float))
-    md = [f"# {stem.name}", "", f"Command: `{command}`" if command else "", "",
-          f"Machine: {result['machine']['note']} ({result['machine']['cpus']} CPUs).", "",
-          f"Conventions: {result['conventions']}.", "", "## Mean over all frames", ""]
-    md += _md_table(result, methods)
+    rt = result.get("runtime") or {}
+    md = [f"# {stem.name}", ""]
+    if command:
+        md += [f"Command: `{command}`", ""]
+    md += [f"Machine: {machine['description']}.", "",
+           f"Device: {rt.get('device', 'cpu')}; torch threads per process: "
+           f"{machine.get('torch_threads', '-')}.", "",
+           f"Conventions: {CONVENTIONS}.", "", "## Mean over all frames", ""]
+    md += _md_table(result["summary"], methods)
+    if "by_noise" in result:
+        md += _group_table(result["by_noise"], methods, "By noise label")
+    if "by_motion" in result:
+        md += _group_table(result["by_motion"], methods, "By motion")
     if "table" in result:
-        cols = [(s, lv[0]) for s in SWEEP_SETS for lv in SWEEP_LEVELS]
-        md += ["", "## PSNR[linear] / SSIM-gauss11[linear] by set and noise (Table 1 shape)", "",
-               "| method | " + " | ".join(f"{s} {lv}" for s, lv in cols) + " |",
-               "|---" * (len(cols) + 1) + "|"]
-        for m in methods:
-            cells = []
-            for s, lv in cols:
-                e = result["table"][m].get(f"{s}/{lv}")
-                cells.append("-" if e is None else
-                             f"{e['PSNR[linear]']:.2f} / {e['SSIM-gauss11[linear]']:.3f}")
-            md.append(f"| {m} | " + " | ".join(cells) + " |")
-    else:
-        md += ["", "## PSNR[linear] per sequence", ""]
-        seqs = sorted({r["sequence"] for r in result["rows"]})
-        md += ["| method | " + " | ".join(seqs) + " |", "|---" * (len(seqs) + 1) + "|"]
-        for m in methods:
-            cells = [f"{np.mean([r['PSNR[linear]'] for r in result['rows'] if r['method'] == m and r['sequence'] == s]):.2f}" for s in seqs]  # noqa: E501
-            md.append(f"| {m} | " + " | ".join(cells) + " |")
+        md += _group_table(result["table"], methods, "By set and noise (Table 1 shape)")
+    md += ["", "## PSNR[linear] per sequence", ""]
+    seqs = sorted({r["sequence"] for r in result["rows"]})
+    md += ["| method | " + " | ".join(seqs) + " |", "|---" * (len(seqs) + 1) + "|"]
+    for m in methods:
+        cells = [f"{np.mean([r['PSNR[linear]'] for r in result['rows'] if r['method'] == m and r['sequence'] == s]):.2f}" for s in seqs]  # noqa: E501
+        md.append(f"| {m} | " + " | ".join(cells) + " |")
+    md += ["", "## Speed against error", "", f"![speed against error]({paths[2].name})", ""]
+    if frames is not None and outputs is not None and panels > 0:
+        md += ["## Image panels", "",
+               "Left to right: ground truth, " + ", ".join(methods) + f"; the same centred "
+               f"crop (at most {PANEL_CROP}×{PANEL_CROP} px) of each, sRGB-encoded.", ""]
+        md += _write_panels(frames, outputs, methods, result,
+                            stem.parent / f"{stem.name}_panels", panels)
     paths[1].write_text("\n".join(md) + "\n")
     _scatter(result, methods, paths[2])
     return paths
 
 
 def _scatter(result: dict, methods: list[str], path: Path) -> None:
+    """Speed against error, one colour per method: the mean (marker) and the range over
+    frames of both time and PSNR (bars); small markers per noise label."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for m in methods:
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    cmap = plt.get_cmap("tab10" if len(methods) <= 10 else "tab20")
+    for j, m in enumerate(methods):
+        color = cmap(j % cmap.N)
+        rows = [r for r in result["rows"] if r["method"] == m]
+        ms = np.array([1000.0 * r["seconds"] for r in rows])
+        ps = np.array([r["PSNR[linear]"] for r in rows])
         e = result["summary"][m]["all"]
-        ax.scatter(e["ms_per_frame"], e["PSNR[linear]"])
-        ax.annotate(m, (e["ms_per_frame"], e["PSNR[linear]"]), fontsize=7,
-                    xytext=(3, 3), textcoords="offset points")
+        x, y = e["ms_per_frame"], e["PSNR[linear]"]
+        ax.errorbar(x, y, xerr=[[x - ms.min()], [ms.max() - x]],
+                    yerr=[[y - ps.min()], [ps.max() - y]], fmt="o", color=color, capsize=3,
+                    label=m, markersize=7)
+        for e2 in (result.get("by_noise") or {}).get(m, {}).values():
+            ax.scatter(e2["ms_per_frame"], e2["PSNR[linear]"], s=12, color=color, alpha=0.5)
     ax.set_xscale("log")
-    ax.set_xlabel("time per frame (ms, median of repeats, warm-up excluded)")
-    ax.set_ylabel("mean PSNR, linear light (dB)")
-    ax.set_title("speed against error")
+    ax.set_xlabel("time per frame (ms, log scale; median of repeats, warm-up excluded)")
+    ax.set_ylabel("PSNR, linear light (dB)")
+    ax.set_title("speed against error (marker: mean, bars: range over frames; "
+                 "dots: per noise label)", fontsize=9)
     ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -4,9 +4,11 @@ Grammar of a pipeline name (all lower case)::
 
     <estimator>[<window>] + <demosaic> [+ <denoiser>]
 
-* estimator: ``tfp`` (window default 41 readouts) or ``tfi`` (search range
-  default: the whole stream); an optional window in readouts follows the name
-  directly, e.g. ``tfp21`` — this is the temporal-denoising choice;
+* estimator: ``tfp`` (window default 41 readouts, or the whole stream when it
+  is shorter) or ``tfi`` (search range default: the whole stream); an
+  optional window in readouts follows the name directly, e.g. ``tfp21`` —
+  this is the temporal-denoising choice; an explicit window longer than the
+  stream is an error;
 * demosaic: ``bilinear``, ``malvar2004``, ``menon2007``, ``opencv_ea``
   (:mod:`spikejdd.demosaic`);
 * denoiser: ``nlm`` or ``bilateral`` (:mod:`spikejdd.denoise`).
@@ -24,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spikejdd.baselines import ESTIMATORS, estimate_mosaic
+from spikejdd.baselines import ESTIMATORS, estimate_mosaic, estimator_window
 from spikejdd.demosaic import DEMOSAIC_METHODS, demosaic
 from spikejdd.denoise import DENOISE_METHODS, denoise
 
@@ -66,6 +68,10 @@ class Pipeline:
             rgb = denoise(rgb, self.denoiser)
             np.clip(rgb, 0.0, 1.0, out=rgb)
         return rgb
+
+    def window_for(self, n_readouts: int, **_options) -> int:
+        """Readouts this pipeline uses on a stream of ``n_readouts`` (reported with results)."""
+        return estimator_window(self.estimator, self.window, n_readouts)
 
     @property
     def description(self) -> str:

@@ -40,7 +40,12 @@ __all__ = [
     "window_bounds",
     "NO_SPIKE_RULES",
     "tfp_std",
+    "TFP_DEFAULT_WINDOW",
+    "default_tfp_window",
 ]
+
+#: TFP's default window in readouts; shorter streams use their whole length.
+TFP_DEFAULT_WINDOW = 41
 
 #: Allowed rules for TFI pixels that lack a spike on one or both sides of the
 #: centre inside the search range.
@@ -113,10 +118,16 @@ def window_bounds(n_readouts: int, center: int | None, window: int) -> tuple[int
     return start, start + window
 
 
+def default_tfp_window(n_readouts: int) -> int:
+    """The window TFP uses when none is given: 41 readouts, or the whole stream when it
+    is shorter (the largest window that fits; placed as :func:`window_bounds` does)."""
+    return max(1, min(TFP_DEFAULT_WINDOW, int(n_readouts)))
+
+
 def tfp(
     spikes: np.ndarray,
     center: int | None = None,
-    window: int = 41,
+    window: int | None = None,
     rate: float = 0.6,
 ) -> np.ndarray:
     """Texture from playback: mean spike count over a window, in scene units.
@@ -135,8 +146,10 @@ def tfp(
         Unpacked spike stream, row 0 = top.
     center : int or None
         Readout index to estimate at; ``None`` = ``T // 2``.
-    window : int, default 41
+    window : int or None
         Readouts counted; see :func:`window_bounds` for placement near the ends.
+        ``None`` = :func:`default_tfp_window` (41, or the stream length when
+        shorter); an explicit window longer than the stream is an error.
     rate : float, default 0.6
         Spikes per readout at intensity 1.0 (the sensor's ``full_scale_rate``).
 
@@ -152,6 +165,8 @@ def tfp(
     """
     arr = _check_spikes(spikes)
     r = _check_rate(rate)
+    if window is None:
+        window = default_tfp_window(arr.shape[0])
     start, stop = window_bounds(arr.shape[0], center, window)
     counts = arr[start:stop].sum(axis=0, dtype=np.int64)
     return counts.astype(np.float64) / ((stop - start) * r)
