@@ -1,10 +1,15 @@
 """Command line ``spikejdd``: a thin layer over :mod:`spikejdd.evaluate`.
 
-``spikejdd evaluate --data DIR --methods a,b,c [--out STEM]``
+``spikejdd evaluate --data DIR --methods a,b,c [--out STEM] [--device D] [--threads N]``
 ``spikejdd evaluate --sweep [--methods ...] [--size 64x96] [--out STEM]``
 ``spikejdd methods``
 ``spikejdd train --data DIR [--config run.json] [--model lite] [--steps N] ...``
-``spikejdd reconstruct INPUT --method sjdd --out DIR`` (HDF5 or ``.dat``; sRGB PNGs)
+``spikejdd reconstruct INPUT --methods sjdd,tfp+malvar2004 --out DIR`` (HDF5 or ``.dat``;
+sRGB PNGs per method and a side-by-side panel per readout)
+
+Method names: anything :meth:`spikejdd.registry.Registry.get` resolves —
+registered names, pipelines, ``package.module:function``, ``sjdd@path/best.pt``,
+entry points of the group ``spikejdd.methods``.
 """
 
 from __future__ import annotations
@@ -35,8 +40,11 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--sweep", action="store_true",
                     help="Table-1-shaped sweep on sets simulated on the fly")
     ev.add_argument("--methods", default=None,
-                    help="comma-separated method names (default: the standard pipelines)")
-    ev.add_argument("--context", type=int, default=41, help="readouts given to each method")
+                    help="comma-separated methods: names, pipelines, package.module:function, "
+                         "sjdd@path/to/best.pt (default: the standard pipelines)")
+    ev.add_argument("--context", type=int, default=None,
+                    help="readouts given to each method (default 41, or the most that fit "
+                         "around the GT readouts of shorter sequences)")
     ev.add_argument("--per-sequence", type=int, default=1, help="GT frames per sequence")
     ev.add_argument("--repeats", type=int, default=3, help="timed calls per frame (median)")
     ev.add_argument("--size", type=_size, default=(64, 96), help="sweep frame size HxW")
@@ -44,10 +52,25 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--seed", type=int, default=0)
     ev.add_argument("--out", default="evaluation", help="output path stem (.json/.md/.png)")
     ev.add_argument("--quiet", action="store_true", help="no progress bars")
+    _runtime_options(ev)
+    ev.add_argument("--panels", type=int, default=6,
+                    help="image panels (GT and every method, same crop) in the report")
     sub.add_parser("methods", help="list reconstruction methods")
     _train_parser(sub)
     _reconstruct_parser(sub)
     return p
+
+
+def _runtime_options(p) -> None:
+    p.add_argument("--device", default=None,
+                   help="torch device for learned methods: cpu (default), cuda, cuda:N")
+    p.add_argument("--threads", type=int, default=None,
+                   help="torch threads per process (default 1 on the CPU: measured faster, "
+                        "benchmarks/results/threads.md)")
+
+
+def _methods(text: str | None) -> list[str]:
+    return [m.strip() for m in text.split(",") if m.strip()] if text else []
 
 
 def _train_parser(sub) -> None:
@@ -80,7 +103,9 @@ def _train_parser(sub) -> None:
 def _reconstruct_parser(sub) -> None:
     rc = sub.add_parser("reconstruct", help="reconstruct frames of an HDF5 or .dat stream")
     rc.add_argument("input", help="spikesim .h5 file or PKU .dat capture")
-    rc.add_argument("--method", default="sjdd", help="method name (default sjdd)")
+    rc.add_argument("--method", "--methods", dest="method", default="sjdd",
+                    help="comma-separated methods (default sjdd); several give side-by-side "
+                         "panels")
     rc.add_argument("--out", required=True, help="output folder for PNGs")
     rc.add_argument("--weights", help="sjdd weights: a shipped name or a checkpoint path")
     rc.add_argument("--centers", help="readouts to reconstruct, e.g. 19,59 or 19:200:20 "
@@ -93,34 +118,56 @@ def _reconstruct_parser(sub) -> None:
     rc.add_argument("--no-flip", action="store_true",
                     help=".dat stored top-down (default: upside down, PKU convention)")
     rc.add_argument("--rate", type=float, help="full_scale_rate (default: file's, or 0.6)")
-    rc.add_argument("--device", default="cpu", help="torch device for learned methods")
+    _runtime_options(rc)
+    rc.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def _evaluate(args) -> int:
     from spikejdd import evaluate
     from spikejdd.pipelines import standard_pipelines
+    from spikejdd.registry import get_method
 
-    methods = ([m.strip() for m in args.methods.split(",") if m.strip()]
-               if args.methods else standard_pipelines())
+    methods = _methods(args.methods) or standard_pipelines()
     if args.sweep == bool(args.data):
         print("spikejdd evaluate: give exactly one of --data DIR or --sweep", file=sys.stderr)
         return 2
+    for m in methods:  # every name checked before any work
+        get_method(m)
+    device = _configure(args)
+    outputs: dict = {}
     if args.sweep:
-        result = evaluate.sweep(methods, size=args.size, context=args.context,
+        frames: list = []
+        result = evaluate.sweep(methods, size=args.size, context=args.context or 41,
                                 frames_per_scene=args.frames_per_scene, repeats=args.repeats,
-                                seed=args.seed, progress=not args.quiet)
+                                seed=args.seed, progress=not args.quiet, outputs=outputs,
+                                device=device, frames_out=frames)
     else:
         frames = evaluate.frames_from_dataset(args.data, args.context, args.per_sequence)
-        result = evaluate.run(frames, methods, repeats=args.repeats, progress=not args.quiet)
+        result = evaluate.run(frames, methods, repeats=args.repeats, progress=not args.quiet,
+                              outputs=outputs, device=device)
     command = "spikejdd " + " ".join(shlex.quote(a) for a in args.argv)
-    paths = evaluate.write_report(result, methods, args.out, command=command)
+    paths = evaluate.write_report(result, methods, args.out, command=command, frames=frames,
+                                  outputs=outputs, panels=args.panels)
     for m in methods:
         e = result["summary"][m]["all"]
+        used = f"  {evaluate._windows(e)} readouts" if e.get("windows") else ""
         print(f"{m:32s} PSNR[linear] {e['PSNR[linear]']:6.2f} dB  "
               f"SSIM-gauss11[linear] {e['SSIM-gauss11[linear]']:.4f}  "
-              f"{e['ms_per_frame']:8.1f} ms/frame")
+              f"{e['ms_per_frame']:8.1f} ms/frame{used}")
     print("wrote " + ", ".join(str(p) for p in paths))
     return 0
+
+
+def _configure(args) -> str:
+    """Validate ``--device`` and set torch's threads (default 1 on the CPU); returns the device.
+    Torch is imported only when a learned method or an explicit setting needs it."""
+    from spikejdd.runtime import check_device, set_threads
+
+    if args.device is None and args.threads is None and "torch" not in sys.modules:
+        return "cpu"
+    device = check_device(args.device)
+    set_threads(args.threads, device)
+    return device
 
 
 def _train(args) -> int:
@@ -189,18 +236,20 @@ def _reconstruct(args) -> int:
     from pathlib import Path
 
     import numpy as np
+    from tqdm import tqdm
 
-    from spikejdd.metrics import srgb_encode
-    from spikejdd.registry import reconstruct
+    from spikejdd.evaluate import panel_image
+    from spikejdd.registry import call_method, get_method
     from spikesim.estimate import window_bounds
 
     src = Path(args.input)
     out = Path(args.out)
-    options = {}
-    if args.method.strip().lower() == "sjdd":
-        options = {"device": args.device}
-        if args.weights:
-            options["weights"] = args.weights
+    names = _methods(args.method) or ["sjdd"]
+    if args.weights:  # --weights names the checkpoint of every sjdd in the list
+        names = [f"{m}@{args.weights}" if m.lower() == "sjdd" else m for m in names]
+    methods = [get_method(m) for m in names]
+    device = _configure(args)
+    options = {"device": device}
     if src.suffix.lower() == ".dat":
         from spikejdd.capture import Capture
 
@@ -209,8 +258,8 @@ def _reconstruct(args) -> int:
         n, cfa, rate = cap.n_readouts, cap.cfa, args.rate or 0.6
         centers = _centers(args.centers, [n // 2])
 
-        def window(c):
-            return cap.window(c, min(args.context, n))[0]
+        def window(c, length):
+            return cap.window(c, length)[0]
     else:
         from spikesim.io import open_h5
 
@@ -220,25 +269,55 @@ def _reconstruct(args) -> int:
         rate = args.rate or float((seq.meta.get("sensor") or {}).get("full_scale_rate", 0.6))
         centers = _centers(args.centers, [int(g) for g in seq.gt_index] or [n // 2])
 
-        def window(c):
-            start, _ = window_bounds(n, c, min(args.context, n))
-            return seq.read_window(start, min(args.context, n))
+        def window(c, length):
+            start, _ = window_bounds(n, c, length)
+            return seq.read_window(start, length)
     import cv2
 
     out.mkdir(parents=True, exist_ok=True)
-    written = []
+    length = min(args.context or 41, n)
+    written, used = [], {}
+    bar = tqdm(total=len(centers) * len(methods), desc="reconstruct", disable=args.quiet)
     for c in centers:
-        length = min(args.context, n)
         start, _ = window_bounds(n, c, length)
-        rgb = reconstruct(window(c), cfa=cfa, method=args.method, center=c - start, rate=rate,
-                          **options)
-        img = (np.clip(srgb_encode(np.clip(rgb, 0, 1)), 0, 1) * 255 + 0.5).astype(np.uint8)
-        path = out / f"{src.stem}_{args.method.replace('+', '_')}_{c:06d}.png"
-        if not cv2.imwrite(str(path), img[..., ::-1]):
-            raise OSError(f"could not write {path}")
-        written.append(path)
+        spikes = window(c, length)
+        tiles = []
+        for m in methods:
+            bar.set_postfix_str(m.name)
+            rgb = call_method(m, spikes, cfa, c - start, rate=rate, **options)
+            used[m.name] = m.window_for(length)
+            tiles.append(rgb)
+            img = (np.clip(_srgb(rgb), 0, 1) * 255 + 0.5).astype(np.uint8)
+            path = out / f"{src.stem}_{_slug(m.name)}_{c:06d}.png"
+            if not cv2.imwrite(str(path), img[..., ::-1]):
+                raise OSError(f"could not write {path}")
+            written.append(path)
+            bar.update()
+        if len(methods) > 1:
+            path = out / f"{src.stem}_panel_{c:06d}.png"
+            panel = panel_image(tiles, [m.name for m in methods], crop=max(spikes.shape[1:]))
+            if not cv2.imwrite(str(path), panel[..., ::-1]):
+                raise OSError(f"could not write {path}")
+            written.append(path)
+    bar.close()
+    for name, w in used.items():
+        print(f"{name}: {w if w is not None else '?'} readouts used (of {length} given)")
     print(f"wrote {len(written)} sRGB PNG(s) to {out}")
     return 0
+
+
+def _srgb(rgb):
+    import numpy as np
+
+    from spikejdd.metrics import srgb_encode
+
+    return srgb_encode(np.clip(rgb, 0, 1))
+
+
+def _slug(name: str) -> str:
+    import re
+
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_")[:80]
 
 
 def main(argv: list[str] | None = None) -> int:

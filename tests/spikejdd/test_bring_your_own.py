@@ -1,0 +1,260 @@
+"""Bring your own method: module:function, entry points, torch modules and sjdd@checkpoint,
+benchmarked from the CLI next to built-ins on a 39-readout dataset; windows that never trip."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+import spikejdd as sj
+import spikesim as ss
+from spikejdd.cli import main
+from spikejdd.registry import METHODS, Registry
+from spikesim.errors import SpikeSimValueError
+from spikesim.io import write_h5
+
+USER_MODULE = '''
+import numpy as np
+
+def grey_tfp(spikes, cfa, center):
+    """Mean firing rate of the whole window as grey (test method)."""
+    level = spikes.mean(axis=0, dtype=np.float64) / 0.6
+    return np.repeat(level[..., None], 3, axis=-1)
+'''
+
+PLUGIN_MODULE = '''
+import numpy as np
+
+def half_grey(spikes, cfa, center, rate=0.6):
+    """Half grey everywhere (entry-point test method)."""
+    return np.full(spikes.shape[1:] + (3,), 0.5)
+'''
+
+
+@pytest.fixture(scope="module")
+def data39(tmp_path_factory):
+    """Three 39-readout sequences (GT at readout 19): GN5 pan, GPN zoom, noise-free fan."""
+    d = tmp_path_factory.mktemp("d39")
+    specs = [("astronaut", "pan", ss.noise.PaperNoise(sigma_g=5.0, sigma_p=0.0)),
+             ("coffee", "zoom", ss.noise.PaperNoise(sigma_g=2.0, sigma_p=1.0)),
+             ("fan", None, None)]
+    for i, (name, motion, noise) in enumerate(specs):
+        sensor = ss.Sensor(height=16, width=24, cfa="RGGB", noise=noise)
+        scene = ss.scenes.procedural(name, motion=motion, size=(16, 24))
+        write_h5(d / f"{name}.h5", ss.simulate(scene, sensor, n_readouts=39, seed=i,
+                                               gt_readouts=[19]))
+    return d
+
+
+@pytest.fixture
+def user_package(tmp_path, monkeypatch):
+    pkg = tmp_path / "usermeth"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "recon.py").write_text(USER_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield "usermeth.recon:grey_tfp"
+    for name in ("usermeth", "usermeth.recon"):
+        sys.modules.pop(name, None)
+
+
+@pytest.fixture
+def entry_point(tmp_path, monkeypatch):
+    """A distribution declaring ``spikejdd.methods`` found by importlib.metadata (no pip)."""
+    root = tmp_path / "site"
+    root.mkdir()
+    (root / "plugmod.py").write_text(PLUGIN_MODULE)
+    info = root / "spikejdd_testplug-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: spikejdd-testplug\n"
+                                   "Version: 1.0\n")
+    (info / "entry_points.txt").write_text("[spikejdd.methods]\nplug-half = plugmod:half_grey\n")
+    monkeypatch.syspath_prepend(str(root))
+    METHODS.reload_entry_points()
+    yield "plug-half"
+    monkeypatch.undo()
+    sys.modules.pop("plugmod", None)
+    METHODS.reload_entry_points()
+
+
+@pytest.fixture(scope="module")
+def checkpoint(data39, tmp_path_factory):
+    """best.pt of a 2-step training run of a tiny SJDD-Net on the 39-readout data."""
+    from spikejdd.train import TrainConfig, train
+
+    from ..sjdd.conftest import TINY
+
+    out = tmp_path_factory.mktemp("run")
+    summary = train(TrainConfig.from_dict(dict(
+        data=str(data39), out=str(out), model="lite", model_overrides=TINY.to_dict(), steps=2,
+        batch_size=2, crop=12, eval_every=100, eval_frames=2, checkpoint_every=100,
+        progress=False, seed=3, threads=1)))
+    assert summary["steps_done"] == 2
+    return out / "best.pt"
+
+
+def test_readme_example_uses_the_largest_window_that_fits():
+    sensor = ss.Sensor(height=16, width=16, cfa="RGGB")
+    stream = ss.simulate(ss.scenes.procedural("astronaut", motion="pan", size=(16, 16)),
+                         sensor, n_readouts=520, seed=0)
+    spikes = stream.unpack()[480:519]
+    img = sj.reconstruct(spikes, cfa="RGGB", method="tfp+malvar2004", center=19)
+    same = sj.reconstruct(spikes, cfa="RGGB", method="tfp39+malvar2004", center=19)
+    np.testing.assert_array_equal(img, same)
+    assert sj.get_method("tfp+malvar2004").window_for(39) == 39
+    assert sj.get_method("tfp+malvar2004").window_for(100) == 41
+    with pytest.raises(SpikeSimValueError, match="window=41.*39 readouts"):
+        sj.reconstruct(spikes, cfa="RGGB", method="tfp41+malvar2004", center=19)
+    # a centre near the end: the 39-readout window is shifted inside, not shortened
+    np.testing.assert_array_equal(sj.baselines.tfp(spikes, 38), sj.baselines.tfp(spikes, 0))
+
+
+def test_registry_object_register_get_names():
+    reg = Registry("test")
+
+    @reg.register(name="zeros")
+    def zeros(spikes, cfa, center):
+        """All black."""
+        return np.zeros(spikes.shape[1:] + (3,))
+
+    assert reg.names() == ["zeros"] and reg.describe()["zeros"] == "All black."
+    m = reg.get("zeros")
+    spikes = np.zeros((5, 4, 6), np.uint8)
+    # rate/device/threads reach a method only if it declares them
+    assert m(spikes, "RGGB", 2, rate=0.5, device="cpu").shape == (4, 6, 3)
+    with pytest.raises(SpikeSimValueError, match="options"):
+        m(spikes, "RGGB", 2, level=3)
+    assert reg.get("tfp+bilinear").window_for(10) == 10
+    with pytest.raises(SpikeSimValueError, match="already registered"):
+        reg.register(zeros, name="zeros")
+    with pytest.raises(SpikeSimValueError, match="package.module:function"):
+        reg.get("nope")
+    with pytest.raises(SpikeSimValueError, match="importable"):
+        reg.get("no_such_pkg.mod:fn")
+    with pytest.raises(SpikeSimValueError, match="takes weights"):
+        reg.get("zeros@w.pt")
+
+
+def test_no_import_circle_between_registry_and_models():
+    import ast
+    from pathlib import Path
+
+    root = Path(sj.__file__).parent
+    for path in (root / "models").glob("*.py"):
+        tree = ast.parse(path.read_text())
+        mods = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+        mods |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        assert "spikejdd.registry" not in mods and "spikejdd" not in mods, path.name
+    reg_tree = ast.parse((root / "registry.py").read_text())
+    assert not any(isinstance(n, ast.ImportFrom) and (n.module or "").startswith(
+        "spikejdd.models") and n.col_offset == 0 for n in reg_tree.body)
+
+
+def test_user_function_and_torch_module(user_package, data39):
+    import torch
+
+    from spikejdd.models import TorchMethod, model_inputs
+
+    spikes = ss.io.open_h5(data39 / "fan.h5").read_window(0, 39)
+    out = sj.reconstruct(spikes, "RGGB", user_package, center=19)
+    np.testing.assert_allclose(out[..., 0], spikes.mean(0) / 0.6)
+
+    class Mean(torch.nn.Module):
+        def forward(self, spikes, mask):
+            assert spikes.shape == (1, 9, 16, 24) and mask.shape == (1, 4, 16, 24)
+            assert torch.equal(mask.sum(1), torch.ones(1, 16, 24))
+            return spikes.mean(1, keepdim=True).expand(-1, 3, -1, -1) / 0.6
+
+    method = TorchMethod(Mean(), window=9)
+    sj.register_method("test-mean-net", method)
+    try:
+        got = sj.reconstruct(spikes, "RGGB", "test-mean-net", center=19)
+        x, m = model_inputs(spikes, "RGGB", 19, 9)
+        np.testing.assert_array_equal(x[0].numpy(), spikes[15:24])
+        np.testing.assert_allclose(got[..., 1], np.clip(spikes[15:24].mean(0) / 0.6, 0, 1),
+                                   atol=1e-6)
+        assert sj.get_method("test-mean-net").window_for(39) == 9
+        with pytest.raises(SpikeSimValueError, match="at least 9 readouts"):
+            sj.reconstruct(spikes[:5], "RGGB", "test-mean-net")
+        with pytest.raises(SpikeSimValueError, match="cfa"):
+            sj.reconstruct(spikes, None, "test-mean-net")
+    finally:
+        sj.unregister_method("test-mean-net")
+
+
+def test_cli_benchmarks_user_entry_point_and_checkpoint_beside_builtins(
+        data39, user_package, entry_point, checkpoint, tmp_path, capsys):
+    methods = ["tfp+malvar2004", "tfi+bilinear", user_package, entry_point,
+               f"sjdd@{checkpoint}"]
+    out = tmp_path / "rep"
+    rc = main(["evaluate", "--data", str(data39), "--methods", ",".join(methods),
+               "--repeats", "1", "--out", str(out), "--quiet", "--threads", "1"])
+    assert rc == 0, capsys.readouterr().err
+    res = json.loads(out.with_suffix(".json").read_text())
+    assert list(res["summary"]) == methods
+    for m in methods:
+        assert res["summary"][m]["all"]["frames"] == 3
+    # the entry point's constant half grey and the user's mean are what was scored
+    assert res["summary"][entry_point]["all"]["windows"] == []
+    assert res["summary"]["tfp+malvar2004"]["all"]["windows"] == [39]
+    assert res["summary"][f"sjdd@{checkpoint}"]["all"]["windows"] == [9]  # from the checkpoint
+    md = out.with_suffix(".md").read_text()
+    assert "2-core AMD EPYC VM" not in md
+    from spikejdd.runtime import machine_info
+
+    info = machine_info()
+    assert f"Machine: {info['cpu_model']}; {info['logical_cpus']} logical CPUs" in md
+    assert "GPU:" in md and "torch threads per process: 1" in md
+    assert "## By noise label" in md and "| method | GN5 | GPN | none |" in md
+    assert "## By motion" in md and "pan" in md and "zoom" in md
+    panels = sorted((tmp_path / "rep_panels").glob("*.png"))
+    assert len(panels) == 3 and all(f"rep_panels/{p.name}" in md for p in panels)
+    import cv2
+
+    img = cv2.imread(str(panels[0]))
+    assert img.shape[1] > 6 * 96  # GT + 5 methods, each enlarged to >= 96 px
+    assert out.with_suffix(".png").read_bytes()[:4] == b"\x89PNG"
+    # per method, PSNR against time in the JSON behind the plot
+    for m in methods:
+        e = res["summary"][m]["all"]
+        assert e["ms_per_frame"] > 0 and np.isfinite(e["PSNR[linear]"])
+
+
+def test_cli_one_line_errors(data39, tmp_path, capsys):
+    args = ["evaluate", "--data", str(data39), "--out", str(tmp_path / "x"), "--quiet"]
+    assert main(args + ["--methods", "sjdd", "--device", "cuda:7"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "cuda:7" in err and "use cpu" in err and len(err.splitlines()) == 1
+    assert main(args + ["--methods", "sjdd@no/such/best.pt"]) == 1
+    assert "no/such/best.pt" in capsys.readouterr().err
+    assert main(args + ["--methods", "tfp41+bilinear"]) == 1
+    assert "window=41" in capsys.readouterr().err
+    assert main(args + ["--methods", "nosuchmod.x:fn"]) == 1
+    assert "nosuchmod" in capsys.readouterr().err
+
+
+def test_reconstruct_dat_capture_writes_side_by_side_panels(tmp_path, capsys):
+    from pathlib import Path
+
+    import cv2
+
+    dat = Path(__file__).resolve().parents[2].parent / "shared/fixtures/peer-reds/" \
+        "203_part2_key_id151.dat"
+    if not dat.is_file():
+        dat = Path("/work/shared/fixtures/peer-reds/203_part2_key_id151.dat")
+    if not dat.is_file():
+        pytest.skip("peer fixture not available")
+    out = tmp_path / "frames"
+    rc = main(["reconstruct", str(dat), "--cfa", "mono", "--methods",
+               "tfp+bilinear,tfp21+bilinear", "--centers", "150", "--out", str(out), "--quiet"])
+    assert rc == 0, capsys.readouterr().err
+    text = capsys.readouterr().out
+    assert "tfp+bilinear: 41 readouts used" in text and "tfp21+bilinear: 21 readouts" in text
+    panel = cv2.imread(str(out / "203_part2_key_id151_panel_000150.png"))
+    single = cv2.imread(str(out / "203_part2_key_id151_tfp_bilinear_000150.png"))
+    assert single.shape == (250, 400, 3)
+    assert panel.shape[1] == 2 * 400 + 2 and panel.shape[0] > 250
+    np.testing.assert_array_equal(panel[-250:, :400], single)
