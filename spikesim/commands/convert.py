@@ -105,10 +105,14 @@ def run(args) -> int:
         from spikesim.io.export import export_sjdd
 
         summary = export_sjdd(args.src, args.dst, subset=args.subset, noise=args.noise,
-                              gt_encoding=args.gt_encoding, progress=not args.quiet)
-        print(f"wrote {summary['samples']} samples: {summary['spk_dir']} and {summary['gt_dir']} "
-              f"(color_mode {summary['color_mode']}; skipped {len(summary['skipped'])} GT "
-              "readouts without a full 39-readout window)")
+                              gt_encoding=args.gt_encoding, progress=not args.quiet,
+                              option_names={"noise": "--noise", "subset": "--subset",
+                                            "gt_encoding": "--gt-encoding"})
+        for e in summary["exports"]:
+            print(f"wrote {e['samples']} samples: {e['spk_dir']} and {e['gt_dir']} "
+                  f"(SJDD-Net noise {e['noise_folder']}, eval_set {e['subset']})")
+        print(f"color_mode {summary['color_mode']}; skipped {len(summary['skipped'])} GT "
+              "readouts without a full 39-readout window")
         return 0
     src = source_from_args(args, args.src)
     out = convert(src, args.dst, args.start, args.length, args.crop, out_flip=args.out_flip,

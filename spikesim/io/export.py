@@ -31,6 +31,15 @@ code this export follows:
 Each ground-truth readout ``n`` of a sequence with ``n - 19 >= 0`` and
 ``n + 19 < T`` gives one sample ``<sequence>_<n:06d>``: readouts ``n-19 ..
 n+19`` (39, centred on ``n``) and the GT of readout ``n``.
+
+Noise folders: a named folder (``noise="phy"``, ``--noise phy``) takes every
+sequence whatever its noise model (physical-mode data included).  With
+``noise="auto"`` one kind of noise gives one folder (several Gaussian levels
+give ``r``); a **mixed** dataset (e.g. GN and GPN sequences) exports each
+label to its own folder, and since the loader pairs ``spk/<noise>/<subset>``
+with ``gt/<subset>`` by sorted name, each label also gets its own subset
+``<subset>-<label>`` (``spk/gp/spikesim-gp`` with ``gt/spikesim-gp``, ...);
+the summary lists every (noise, subset) pair to pass to the SJDD-Net scripts.
 """
 
 from __future__ import annotations
@@ -41,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spikesim.errors import SpikeSimFormatError, bad_value
+from spikesim.errors import SpikeSimFormatError, SpikeSimValueError, bad_value
 from spikesim.io._atomic import atomic_path
 from spikesim.io.dat import DatWriter
 from spikesim.io.index import Dataset, open_dataset
@@ -83,17 +92,43 @@ def sjdd_noise_label(meta: dict) -> tuple[str, float | None]:
     )
 
 
-def _folder_label(labels: list[tuple[str, float | None]], noise: str) -> str:
+def _bad(name: str, value, allowed: str) -> SpikeSimValueError:
+    """bad_value, or for a command-line flag (``--noise``) ``--noise 'x' is invalid: ...``."""
+    if name.startswith("-"):
+        return SpikeSimValueError(f"{name} {value!r} is invalid: expected {allowed}")
+    return bad_value(name, value, allowed)
+
+
+def _gaussian_sigma(meta: dict) -> float | None:
+    """σ_g (8-bit DN) of a paper-mode Gaussian or noise-free sequence, else None (no raise)."""
+    noise = (meta.get("sensor") or {}).get("noise") if isinstance(meta.get("sensor"), dict) \
+        else None
+    if not noise:
+        return 0.0
+    if noise.get("type") == "paper" and float(noise.get("sigma_p", 0.0)) == 0.0:
+        return float(noise.get("sigma_g", 0.0))
+    return None
+
+
+def _folders(ds: Dataset, noise: str, flag: str) -> list[tuple[str, float | None]]:
+    """(noise folder, σ_g or None) per sequence; a named folder wins over the metadata."""
     if noise != "auto":
         if not isinstance(noise, str) or not noise or "/" in noise or noise in (".", ".."):
-            raise bad_value("noise", noise, "'auto' or a folder name such as '0', '15', 'r', 'gp'")
-        return noise
-    kinds = {lab for lab, _ in labels}
-    if len(kinds) == 1:
-        return kinds.pop()
-    if "gp" in kinds:
-        raise bad_value("noise", sorted(kinds), "one noise kind per export (GN or GPN, not both)")
-    return "r"  # Gaussian at several levels: the level goes in the file name
+            raise _bad(flag, noise, "'auto' or a folder name such as '0', '15', 'r', 'gp', "
+                            "'phy'")
+        return [(noise, _gaussian_sigma(s.meta)) for s in ds]
+    labels = []
+    for s in ds:
+        try:
+            labels.append(sjdd_noise_label(s.meta))
+        except SpikeSimValueError:
+            kind = ((s.meta.get("sensor") or {}).get("noise") or {}).get("type")
+            example = f"{flag} phy" if flag.startswith("-") else f"{flag}='phy'"
+            raise _bad(flag, "auto", f"a folder name for {s.name} ({kind}-mode noise has "
+                            f"no SJDD-Net level), e.g. {example}") from None
+    gaussian = {lab for lab, sigma in labels if sigma is not None}
+    shared = gaussian.pop() if len(gaussian) == 1 else "r"  # several levels: in file names
+    return [(lab if sigma is None else shared, sigma) for lab, sigma in labels]
 
 
 def export_sjdd(
@@ -104,6 +139,7 @@ def export_sjdd(
     gt_encoding: str = "linear",
     flip: bool = False,
     progress: bool = False,
+    option_names: dict | None = None,
 ) -> dict:
     """Write the SJDD-Net layout under ``out_dir`` (see the module docstring).
 
@@ -117,19 +153,26 @@ def export_sjdd(
         Sub-folder name (``--eval_set`` of the SJDD-Net scripts).
     noise : str
         ``"auto"`` derives the noise folder from the sequences' noise
-        configuration; any other string is used as the folder name.
+        configuration (mixed datasets: one folder and subset per label, see
+        the module doc); any other string is the folder of every sequence.
     gt_encoding : {"linear", "srgb"}
     flip : bool
         Store frames upside down (False: what the SJDD-Net scripts read).
+    option_names : dict, optional
+        How error messages name the options (the CLI passes its flags,
+        e.g. ``{"noise": "--noise"}``); default: the keyword names.
 
-    Returns a summary dict (samples written, skipped GT readouts, folders).
+    Returns a summary dict (samples written, skipped GT readouts, folders;
+    ``exports`` lists each (noise folder, subset) written).
     """
     from tqdm.auto import tqdm
 
+    names = {"noise": "noise", "subset": "subset", "gt_encoding": "gt_encoding",
+             **(option_names or {})}
     if gt_encoding not in GT_ENCODINGS:
-        raise bad_value("gt_encoding", gt_encoding, f"one of {GT_ENCODINGS}")
+        raise _bad(names["gt_encoding"], gt_encoding, f"one of {GT_ENCODINGS}")
     if not isinstance(subset, str) or not subset or "/" in subset or subset in (".", ".."):
-        raise bad_value("subset", subset, "a non-empty folder name")
+        raise _bad(names["subset"], subset, "a non-empty folder name")
     ds = source if isinstance(source, Dataset) else open_dataset(source)
     half = SJDD_WINDOW // 2
     cfas = {s.cfa for s in ds}
@@ -142,36 +185,49 @@ def export_sjdd(
         if (s.height * s.width) % 8:
             raise bad_value(f"{s.name}: height*width", s.height * s.width,
                             "a multiple of 8 (the SJDD-Net .dat decoder needs whole bytes)")
-    labels = [sjdd_noise_label(s.meta) for s in ds]
-    folder = _folder_label(labels, noise)
+    folders = _folders(ds, noise, names["noise"])
+    groups = sorted({f for f, _ in folders})
     out = Path(out_dir)
-    spk_dir = out / "spk" / folder / subset
-    gt_dir = out / "gt" / subset
-    spk_dir.mkdir(parents=True, exist_ok=True)
-    gt_dir.mkdir(parents=True, exist_ok=True)
+    exports = []
     written, skipped, samples = 0, [], []
-    jobs = [(s, lab, k, int(n)) for s, lab in zip(ds, labels, strict=True)
+    jobs = [(s, f, sigma, k, int(n)) for s, (f, sigma) in zip(ds, folders, strict=True)
             for k, n in enumerate(s.gt_index)]
-    for seq, (_, sigma), k, n in tqdm(jobs, disable=not progress, desc="export", unit="sample"):
-        if n - half < 0 or n + half >= seq.n_readouts:
-            skipped.append(f"{seq.name}@{n}")
-            continue
-        stem = f"{seq.name}_{n:06d}"
-        dat_name = stem + (f"-{sigma:g}" if folder == "r" and sigma is not None else "") + ".dat"
-        if folder == "r" and sigma is None:
-            raise bad_value("noise", "r", f"Gaussian sequences only ({seq.name} has no σ_g)")
-        with DatWriter(spk_dir / dat_name, seq.height, seq.width, flip=flip) as w:
-            w.write_packed(seq.read_window(n - half, SJDD_WINDOW, packed=True))
-        with atomic_path(gt_dir / f"{stem}.npy") as tmp, open(tmp, "wb") as fh:
-            np.save(fh, gt_to_uint8(seq.read_gt(k), gt_encoding))
-        samples.append({"sequence": seq.name, "readout": n, "dat": dat_name, "gt": f"{stem}.npy",
-                        "sigma": sigma})
-        written += 1
-    _check_pairing(spk_dir, gt_dir, strip_sigma=folder == "r")
+    for folder in groups:
+        sub = subset if len(groups) == 1 else f"{subset}-{folder}"
+        spk_dir = out / "spk" / folder / sub
+        gt_dir = out / "gt" / sub
+        spk_dir.mkdir(parents=True, exist_ok=True)
+        gt_dir.mkdir(parents=True, exist_ok=True)
+        count = 0
+        mine = [j for j in jobs if j[1] == folder]
+        for seq, _, sigma, k, n in tqdm(mine, disable=not progress, desc=f"export {folder}",
+                                        unit="sample"):
+            if n - half < 0 or n + half >= seq.n_readouts:
+                skipped.append(f"{seq.name}@{n}")
+                continue
+            if folder == "r" and sigma is None:
+                raise _bad(names["noise"], "r",
+                                f"Gaussian sequences only ({seq.name} has no σ_g)")
+            stem = f"{seq.name}_{n:06d}"
+            dat_name = stem + (f"-{sigma:g}" if folder == "r" else "") + ".dat"
+            with DatWriter(spk_dir / dat_name, seq.height, seq.width, flip=flip) as w:
+                w.write_packed(seq.read_window(n - half, SJDD_WINDOW, packed=True))
+            with atomic_path(gt_dir / f"{stem}.npy") as tmp, open(tmp, "wb") as fh:
+                np.save(fh, gt_to_uint8(seq.read_gt(k), gt_encoding))
+            samples.append({"sequence": seq.name, "readout": n, "dat": dat_name,
+                            "gt": f"{stem}.npy", "sigma": sigma, "noise_folder": folder,
+                            "subset": sub})
+            count += 1
+        _check_pairing(spk_dir, gt_dir, strip_sigma=folder == "r")
+        exports.append({"noise_folder": folder, "subset": sub, "spk_dir": str(spk_dir),
+                        "gt_dir": str(gt_dir), "samples": count})
+        written += count
     cfa = cfas.pop()
+    first = exports[0]
     summary = {
-        "samples": written, "skipped": skipped, "spk_dir": str(spk_dir), "gt_dir": str(gt_dir),
-        "noise_folder": folder, "cfa": cfa, "color_mode": cfa.lower(), "flip": flip,
+        "samples": written, "skipped": skipped, "spk_dir": first["spk_dir"],
+        "gt_dir": first["gt_dir"], "noise_folder": first["noise_folder"] if len(groups) == 1
+        else "mixed", "exports": exports, "cfa": cfa, "color_mode": cfa.lower(), "flip": flip,
         "gt_encoding": gt_encoding, "window": SJDD_WINDOW,
     }
     with atomic_path(out / "spikesim_export.json") as tmp:

@@ -98,3 +98,47 @@ def test_srgb_ground_truth_option(tmp_path, make_stream):
     lin = np.load(next((tmp_path / "lin" / "gt" / "spikesim").glob("*.npy"))).astype(float)
     srgb = np.load(next((tmp_path / "srgb" / "gt" / "spikesim").glob("*.npy"))).astype(float)
     assert (srgb >= lin).all() and srgb.mean() > lin.mean() + 20  # sRGB lifts mid-tones
+
+
+def _physical(tmp_path, make_stream):
+    return _dataset(tmp_path, make_stream, [{"type": "physical", "shot": True}], gt=(40,))
+
+
+def test_named_folder_wins_for_physical_noise(tmp_path, make_stream):
+    src = _physical(tmp_path / "p", make_stream)
+    summary = export_sjdd(src, tmp_path / "out", noise="phy")
+    assert summary["noise_folder"] == "phy" and summary["samples"] == 1
+    assert (tmp_path / "out" / "spk" / "phy" / "spikesim" / "seq0_000040.dat").is_file()
+    with pytest.raises(SpikeSimValueError, match=r"noise='auto'.*physical.*noise='phy'"):
+        export_sjdd(src, tmp_path / "auto")
+    with pytest.raises(SpikeSimValueError, match="Gaussian sequences only"):
+        export_sjdd(src, tmp_path / "r", noise="r")
+
+
+def test_mixed_labels_export_each_to_its_folder(tmp_path, make_stream):
+    src = _dataset(tmp_path, make_stream, [_paper(5.0), _paper(3.0, 1.0), _paper(10.0)],
+                   gt=(40,))
+    out = tmp_path / "mix"
+    summary = export_sjdd(src, out, subset="s")
+    assert summary["noise_folder"] == "mixed"
+    got = {(e["noise_folder"], e["subset"], e["samples"]) for e in summary["exports"]}
+    assert got == {("gp", "s-gp", 1), ("r", "s-r", 2)}
+    # each (noise, subset) pairs one to one by sorted name, as the SJDD-Net loader reads it
+    assert sorted(p.name for p in (out / "spk" / "r" / "s-r").glob("*.dat")) == [
+        "seq0_000040-5.dat", "seq2_000040-10.dat"]
+    assert sorted(p.name for p in (out / "gt" / "s-r").glob("*.npy")) == [
+        "seq0_000040.npy", "seq2_000040.npy"]
+    assert [p.name for p in (out / "spk" / "gp" / "s-gp").glob("*")] == ["seq1_000040.dat"]
+    assert [p.name for p in (out / "gt" / "s-gp").glob("*")] == ["seq1_000040.npy"]
+
+
+def test_cli_names_the_flag(tmp_path, make_stream, capsys):
+    from spikesim.cli import main
+
+    src = _physical(tmp_path / "p", make_stream)
+    assert main(["convert", str(src), str(tmp_path / "o"), "--sjdd", "--quiet"]) != 0
+    err = capsys.readouterr().err
+    assert "--noise 'auto' is invalid" in err and "noise=" not in err and len(err.strip().splitlines()) == 1
+    assert main(["convert", str(src), str(tmp_path / "o"), "--sjdd", "--noise", "phy",
+                 "--quiet"]) == 0
+    assert "noise phy, eval_set spikesim" in capsys.readouterr().out
