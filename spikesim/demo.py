@@ -61,14 +61,24 @@ def _available_methods() -> list[str]:
 
 def run_demo(out_dir: str | Path = "demo_out", size: int | None = None,
              limit: int | None = None, methods: list[str] | None = None,
-             progress: bool = True) -> dict:
-    """Run the demo into ``out_dir``; returns the report data (also in summary.json)."""
+             progress: bool = True, device: str | None = None,
+             threads: int | None = None) -> dict:
+    """Run the demo into ``out_dir``; returns the report data (also in summary.json).
+
+    ``device`` and ``threads`` apply to learned methods (SJDD-Net): the torch
+    device, and torch threads per process (default 1 on the CPU, see
+    :func:`spikejdd.runtime.set_threads`); both are checked before any work.
+    """
     from spikesim.dataset import build_dataset
     from spikesim.io import open_dataset
     from spikesim.io.preview import estimate_image, save_image
 
     out = Path(out_dir)
     manifest = _demo_manifest(size, limit)
+    if _available_methods():  # spikejdd installed: check the device, set torch threads
+        from spikejdd.runtime import configure
+
+        device, threads = configure(device, threads)
     t0 = time.perf_counter()
     summary = build_dataset(manifest, out, workers=1, progress=progress, limit=limit)
     build_s = time.perf_counter() - t0
@@ -103,14 +113,14 @@ def run_demo(out_dir: str | Path = "demo_out", size: int | None = None,
     methods = _available_methods() if methods is None else list(methods)
     if methods:
         result["reconstruction"] = _reconstruct(data_dir, out, methods, manifest.window,
-                                                progress)
+                                                progress, device)
     (out / "summary.json").write_text(json.dumps(result, indent=1, default=str))
     (out / "report.md").write_text(_report(result))
     return result
 
 
 def _reconstruct(data_dir: Path, out: Path, methods: list[str], window: int,
-                 progress: bool) -> dict:
+                 progress: bool, device: str | None = None) -> dict:
     from spikejdd import evaluate
     from spikesim.io.preview import save_image
 
@@ -118,7 +128,8 @@ def _reconstruct(data_dir: Path, out: Path, methods: list[str], window: int,
     # minutes on 2 cores even with SJDD-Net on the CPU
     frames = evaluate.frames_from_dataset(data_dir, context=window, per_sequence=1)
     outputs: dict = {}
-    res = evaluate.run(frames, methods, repeats=1, progress=progress, outputs=outputs)
+    res = evaluate.run(frames, methods, repeats=1, progress=progress, outputs=outputs,
+                       device=device)
     panels = []
     for i, f in enumerate(frames):
         tiles = [_srgb8(f.gt)] + [_srgb8(outputs[(m, i)]) for m in methods]

@@ -9,13 +9,18 @@ def register(sub) -> None:
     p.add_argument("--out", default="demo_out", help="output folder (default: demo_out)")
     p.add_argument("--size", type=int, default=None, help="frame side in pixels (default 256)")
     p.add_argument("--limit", type=int, default=None, help="only the first N sequences")
+    p.add_argument("--device", default=None,
+                   help="torch device for SJDD-Net: cpu (default), cuda, cuda:N")
+    p.add_argument("--threads", type=int, default=None,
+                   help="torch threads per process (default 1 on the CPU: measured faster)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from spikesim.demo import run_demo
 
-    r = run_demo(args.out, size=args.size, limit=args.limit)
+    r = run_demo(args.out, size=args.size, limit=args.limit, device=args.device,
+                 threads=args.threads)
     print(f"{'sequence':26s} {'noise':5s} {'σ_g':>5s} {'σ_p':>5s} {'rate':>6s}")
     for s in r["sequences"]:
         print(f"{s['name']:26s} {s['noise']:5s} {s['sigma_g']:5.1f} {s['sigma_p']:5.1f} "

@@ -258,3 +258,14 @@ def test_reconstruct_dat_capture_writes_side_by_side_panels(tmp_path, capsys):
     assert single.shape == (250, 400, 3)
     assert panel.shape[1] == 2 * 400 + 2 and panel.shape[0] > 250
     np.testing.assert_array_equal(panel[-250:, :400], single)
+
+
+def test_demo_checks_the_device_before_any_work(tmp_path, capsys):
+    from spikesim.cli import main as spikesim_main
+
+    out = tmp_path / "demo"
+    assert spikesim_main(["demo", "--out", str(out), "--size", "32", "--limit", "1",
+                          "--device", "cuda:7"]) != 0
+    err = capsys.readouterr().err.strip()
+    assert "cuda:7" in err and len(err.splitlines()) == 1
+    assert not (out / "demo").exists()
