@@ -142,7 +142,8 @@ def run_file(doc: Path, workdir: Path) -> int:
 @pytest.mark.parametrize("doc", DOCS, ids=[str(d.relative_to(ROOT)) for d in DOCS])
 def test_every_code_block_runs(doc, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setenv("MPLBACKEND", "Agg")
+    for name, value in _shell_env().items():   # python blocks may start the commands too
+        monkeypatch.setenv(name, value)
     run_file(doc, tmp_path)
 
 
