@@ -14,7 +14,8 @@ import os
 import shlex
 import sys
 
-from spikesim.errors import SpikeSimError
+from spikesim.cli_guard import debug_requested, run_guarded
+from spikesim.errors import bad_value
 
 __all__ = ["main", "build_parser"]
 
@@ -29,6 +30,9 @@ def _size(text: str) -> tuple[int, int]:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="spikejdd", description="Spike-camera JDD reconstruction.")
+    p.add_argument("--debug", action="store_true",
+                   help="show Python tracebacks instead of one-line errors (anywhere on the "
+                        "line; or set SPIKESIM_DEBUG=1)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     ev = sub.add_parser("evaluate", help="score methods (PSNR/SSIM) and time them")
     ev.add_argument("--data", help="spikesim HDF5 file or folder")
@@ -131,7 +135,15 @@ def _train(args) -> int:
 
     cfg = {}
     if args.config:
-        cfg = json.loads(Path(args.config).read_text())
+        try:
+            cfg = json.loads(Path(args.config).read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise bad_value("--config", args.config, "an existing JSON file") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise bad_value("--config", args.config, f"a JSON file of TrainConfig keys ({exc})") \
+                from None
+        if not isinstance(cfg, dict):
+            raise bad_value("--config", args.config, "a JSON object of TrainConfig keys")
     for name in ("data", "out", "eval_data", "model", "steps", "batch_size", "crop", "lr",
                  "lr_step", "gamma", "noise_weight", "eval_every", "eval_frames",
                  "checkpoint_every", "seed", "workers", "time_limit_min", "device", "resume",
@@ -241,29 +253,57 @@ def _reconstruct(args) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    argv = sys.argv[1:] if argv is None else list(argv)
-    args = parser.parse_args(argv)
-    args.argv = argv  # recorded in reports as the command that made them
-    try:
-        if args.command == "evaluate":
-            return _evaluate(args)
-        if args.command == "train":
-            return _train(args)
-        if args.command == "reconstruct":
-            return _reconstruct(args)
-        if args.command == "methods":
-            from spikejdd import list_methods
+def _check_device(text: str | None) -> None:
+    """A torch device this machine has (``auto``, ``cpu``, ``cuda``, ``cuda:N``), else raise."""
+    if text is None or text.strip().lower() == "auto":
+        return
+    import torch
 
-            for name, desc in list_methods().items():
-                print(f"{name:32s} {desc}")
-            return 0
+    try:
+        dev = torch.device(text)
+    except (RuntimeError, ValueError):
+        raise bad_value("--device", text, "auto, cpu, cuda or cuda:N") from None
+    if dev.type == "cuda":
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if count == 0:
+            raise bad_value("--device", text, "cpu or auto: this machine has no CUDA device")
+        if dev.index is not None and dev.index >= count:
+            raise bad_value("--device", text, f"cuda:0 .. cuda:{count - 1} ({count} CUDA "
+                                              "device(s) here)")
+    elif dev.type not in ("cpu", "mps"):
+        raise bad_value("--device", text, "auto, cpu, cuda or cuda:N")
+
+
+def _dispatch(parser, args) -> int:
+    if args.command is None:
         parser.print_help()
         return 2
-    except SpikeSimError as exc:
-        print(f"spikejdd: error: {exc}", file=sys.stderr)
-        return 1
+    _check_device(getattr(args, "device", None))
+    if args.command == "evaluate":
+        return _evaluate(args)
+    if args.command == "train":
+        return _train(args)
+    if args.command == "reconstruct":
+        return _reconstruct(args)
+    if args.command == "methods":
+        from spikejdd import list_methods
+
+        for name, desc in list_methods().items():
+            print(f"{name:32s} {desc}")
+        return 0
+    parser.print_help()
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = debug_requested(argv)
+    argv = [a for a in argv if a != "--debug"]
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.argv = argv  # recorded in reports as the command that made them
+    label = f"spikejdd {args.command}" if args.command else "spikejdd"
+    return run_guarded(label, lambda: _dispatch(parser, args), debug=debug)
 
 
 if __name__ == "__main__":  # pragma: no cover
