@@ -26,6 +26,7 @@ COMMAND_MODULES = (
     "convert",
     "preview",
     "analyze",
+    "verify",
 )
 
 EXIT_OK = 0

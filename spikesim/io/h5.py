@@ -31,6 +31,7 @@ so it is safe to hand to spawned or forked worker processes.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Iterable
 from pathlib import Path
@@ -68,6 +69,7 @@ CHUNK_BYTES = 16
 #: Per-dataset chunk cache of a reader (bytes).
 READ_CACHE_BYTES = 8 << 20
 
+_CFA_NAMES = ("mono", "RGGB", "BGGR", "GRBG", "GBRG")
 _REQUIRED_ATTRS = ("format_version", "height", "width", "cfa", "clock_hz", "bitorder", "meta")
 
 
@@ -487,13 +489,14 @@ class Sequence:
                             f"nothing: {self.name!r} has no ground truth")
         top, left, h, w = check_crop(crop, self.height, self.width)
         try:
-            return self._h5()["gt"][int(k) % n, top:top + h, left:left + w, :]
+            return _finite_gt(self.path, self._h5()["gt"][int(k) % n, top:top + h,
+                                                            left:left + w, :])
         except OSError as exc:
             raise _read_error(self.path, exc) from exc
 
     def read_all_gt(self) -> np.ndarray:
         try:
-            return self._h5()["gt"][:]
+            return _finite_gt(self.path, self._h5()["gt"][:])
         except OSError as exc:
             raise _read_error(self.path, exc) from exc
 
@@ -510,6 +513,15 @@ class Sequence:
         )
 
 
+def _finite_gt(path: Path, gt: np.ndarray) -> np.ndarray:
+    if gt.size and not np.isfinite(gt).all():
+        raise SpikeSimFormatError(
+            f"{str(path)!r}: its ground truth holds NaN or infinite values (damaged or "
+            "written by another tool): regenerate the file"
+        )
+    return gt
+
+
 def _read_error(path: Path, exc: Exception) -> SpikeSimFormatError:
     text = str(exc)
     low = text.lower()
@@ -519,7 +531,14 @@ def _read_error(path: Path, exc: Exception) -> SpikeSimFormatError:
             f"{str(path)!r}: its data use a compression filter this HDF5 cannot decode{hint}: "
             f"{text}"
         )
-    return SpikeSimFormatError(f"{str(path)!r}: damaged data, cannot be read ({text})")
+    if "fletcher" in low or "checksum" in low:
+        return SpikeSimFormatError(
+            f"{str(path)!r}: damaged data (a chunk fails its checksum): restore or regenerate "
+            "the file"
+        )
+    return SpikeSimFormatError(
+        f"{str(path)!r}: damaged data, cannot be read ({text}): restore or regenerate the file"
+    )
 
 
 def _open_checked(path: Path) -> h5py.File:
@@ -598,6 +617,29 @@ def _header_of(f: h5py.File, path: Path) -> dict:
         raise SpikeSimFormatError(
             f"{str(path)!r}: height={height}, width={width} or meta is not valid"
         )
+    if not (math.isfinite(clock_hz) and clock_hz >= 0):
+        raise SpikeSimFormatError(
+            f"{str(path)!r}: clock_hz={clock_hz!r} is not a readout clock (a finite number of "
+            "Hz > 0, or 0 when unknown)"
+        )
+    cfa_text = _attr_text(attrs["cfa"])
+    if cfa_text not in _CFA_NAMES:
+        raise SpikeSimFormatError(
+            f"{str(path)!r}: cfa={cfa_text!r} is not a Bayer pattern (one of {_CFA_NAMES})"
+        )
+    for key in ("sensor", "noise", "scene"):
+        if key in attrs:
+            try:
+                value = json.loads(_attr_text(attrs[key]))
+            except (TypeError, ValueError) as exc:
+                raise SpikeSimFormatError(
+                    f"{str(path)!r}: the {key!r} attribute is not valid JSON ({exc})"
+                ) from None
+            if value is not None and not isinstance(value, dict):
+                raise SpikeSimFormatError(
+                    f"{str(path)!r}: the {key!r} attribute is {type(value).__name__}, "
+                    "expected a JSON object"
+                )
     nb = (width + 7) // 8
     spikes = _check_dataset(f, path, "spikes", np.uint8, (height, nb))
     has_clean = "clean_spikes" in f
@@ -620,7 +662,14 @@ def _header_of(f: h5py.File, path: Path) -> dict:
         )
     if n == 0:
         raise SpikeSimFormatError(f"{str(path)!r}: the spikes dataset holds no readout")
-    cfa = _attr_text(attrs["cfa"])
+    for where, stated in (("attribute", attrs.get("n_readouts")),
+                          ("meta", meta.get("n_readouts"))):
+        if stated is not None and (not isinstance(stated, (int, np.integer)) or stated != n):
+            raise SpikeSimFormatError(
+                f"{str(path)!r}: n_readouts={stated!r} ({where}) disagrees with the {n} "
+                "readouts of the spikes dataset: the file was altered or damaged"
+            )
+    cfa = cfa_text
     meta["gt_index"] = gt_index.tolist()
     return {
         "height": height, "width": width, "cfa": None if cfa == "mono" else cfa,
