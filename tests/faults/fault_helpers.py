@@ -1,0 +1,58 @@
+"""Helpers of the fault suite: subprocess runs of the command lines, checks, small streams."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+FULL = os.environ.get("SPIKESIM_FAULTS", "").lower() == "full"
+full_only = pytest.mark.skipif(not FULL, reason="full fault suite only (make test-faults)")
+
+
+def cli_env(**extra) -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    env.pop("SPIKESIM_DEBUG", None)
+    env.update(extra)
+    return env
+
+
+def cli_command(prog: str, *args) -> list[str]:
+    return [sys.executable, "-m", f"{prog}.cli", *map(str, args)]
+
+
+def run_cli(prog: str, *args, cwd, timeout=240, preexec_fn=None, **kw):
+    """Run ``spikesim``/``spikejdd`` in a subprocess; returns the CompletedProcess."""
+    return subprocess.run(cli_command(prog, *args), cwd=cwd, env=cli_env(), capture_output=True,
+                          text=True, timeout=timeout, preexec_fn=preexec_fn, **kw)
+
+
+def assert_clean_failure(proc, *needles, code=1):
+    """Non-zero exit, no traceback or crash, one ``error`` line naming ``needles``."""
+    err = proc.stderr
+    assert proc.returncode == code, (proc.returncode, err[-2000:])
+    assert "Traceback" not in err and "Segmentation" not in err, err[-2000:]
+    lines = [ln for ln in err.splitlines() if "error" in ln]
+    assert lines, err[-2000:]
+    for needle in needles:
+        assert needle in lines[-1], (needle, lines[-1])
+
+
+def no_temps(folder: Path) -> list[Path]:
+    return [p for p in Path(folder).rglob(".*") if ".tmp-" in p.name]
+
+
+def small_stream(n=96, height=16, width=20, cfa="RGGB", noise=True, clean_twin=False):
+    import spikesim as ss
+
+    sensor = ss.Sensor(height=height, width=width, cfa=cfa,
+                       noise=ss.noise.PaperNoise(sigma_g=8.0) if noise else None)
+    scene = ss.scenes.procedural("astronaut", motion="pan", size=(height, width))
+    return ss.simulate(scene, sensor, n, seed=3, clean_twin=clean_twin, gt_readouts=[10, 50, 90])
+
+
