@@ -48,6 +48,6 @@ def dat_original(tmp_path_factory):
 
     folder = tmp_path_factory.mktemp("origdat")
     path = folder / "orig.dat"
-    st = small_stream(height=250, width=400, n=8, noise=True)
+    st = small_stream(height=250, width=400, n=8, noise=True, gt_readouts=[4])
     write_dat(path, st)
     return path, np.asarray(st.unpack())

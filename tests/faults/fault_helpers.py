@@ -47,12 +47,14 @@ def no_temps(folder: Path) -> list[Path]:
     return [p for p in Path(folder).rglob(".*") if ".tmp-" in p.name]
 
 
-def small_stream(n=96, height=16, width=20, cfa="RGGB", noise=True, clean_twin=False):
+def small_stream(n=96, height=16, width=20, cfa="RGGB", noise=True, clean_twin=False,
+                 gt_readouts=(10, 50, 90)):
     import spikesim as ss
 
     sensor = ss.Sensor(height=height, width=width, cfa=cfa,
                        noise=ss.noise.PaperNoise(sigma_g=8.0) if noise else None)
     scene = ss.scenes.procedural("astronaut", motion="pan", size=(height, width))
-    return ss.simulate(scene, sensor, n, seed=3, clean_twin=clean_twin, gt_readouts=[10, 50, 90])
+    return ss.simulate(scene, sensor, n, seed=3, clean_twin=clean_twin,
+                       gt_readouts=list(gt_readouts))
 
 

@@ -210,8 +210,11 @@ def test_commands_on_damaged_files_fail_cleanly(h5_original, tmp_path, monkeypat
         path.write_bytes(bytes(data))
         with h5py.File(path, "r+") as f:
             TAMPER[damage](f)
+    if damage == "gt nan" and command in ("info", "preview"):
+        pytest.skip("info and preview never read ground truth")
+    target = "o.h5" if damage == "gt nan" else "o.dat"  # .dat output carries no ground truth
     argv = {"info": ["info", path], "verify": ["verify", path],
-            "convert": ["convert", path, "o.dat"], "preview": ["preview", path, "--out", "o.png"]}
+            "convert": ["convert", path, target], "preview": ["preview", path, "--out", "o.png"]}
     code, err = _spikesim(argv[command])
     assert code == 1, err
     assert "Traceback" not in err, err
@@ -219,7 +222,7 @@ def test_commands_on_damaged_files_fail_cleanly(h5_original, tmp_path, monkeypat
         assert "DAMAGED" in err and "1 damaged" in err, err
     else:
         assert sum("error" in ln for ln in err.splitlines()) == 1, err
-    assert not (tmp_path / "o.dat").exists() and not (tmp_path / "o.png").exists()
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(("o.", ".o."))]
 
 
 @SETTINGS
