@@ -14,6 +14,7 @@ import os
 import shlex
 import sys
 
+from spikesim._validate import check_cli_numbers
 from spikesim.cli_guard import debug_requested, run_guarded
 from spikesim.errors import bad_value
 
@@ -107,7 +108,7 @@ def _evaluate(args) -> int:
     methods = ([m.strip() for m in args.methods.split(",") if m.strip()]
                if args.methods else standard_pipelines())
     if args.sweep == bool(args.data):
-        print("spikejdd evaluate: give exactly one of --data DIR or --sweep", file=sys.stderr)
+        print("spikejdd evaluate: error: give exactly one of --data DIR or --sweep", file=sys.stderr)
         return 2
     if args.sweep:
         result = evaluate.sweep(methods, size=args.size, context=args.context,
@@ -155,7 +156,7 @@ def _train(args) -> int:
     for item in args.set:
         key, sep, value = item.partition("=")
         if not sep:
-            print(f"spikejdd train: --set {item!r}: expected FIELD=VALUE", file=sys.stderr)
+            print(f"spikejdd train: error: --set {item!r}: expected FIELD=VALUE", file=sys.stderr)
             return 2
         try:
             overrides[key.strip()] = json.loads(value)
@@ -170,7 +171,7 @@ def _train(args) -> int:
     if args.quiet:
         cfg["progress"] = False
     if not cfg.get("data"):
-        print("spikejdd train: give --data DIR (or a --config with 'data')", file=sys.stderr)
+        print("spikejdd train: error: give --data DIR (or a --config with 'data')", file=sys.stderr)
         return 2
     if args.synthesize:
         data = Path(cfg["data"])
@@ -204,7 +205,9 @@ def _reconstruct(args) -> int:
 
     from spikejdd.metrics import srgb_encode
     from spikejdd.registry import reconstruct
+    from spikesim.errors import SpikeSimFileError
     from spikesim.estimate import window_bounds
+    from spikesim.io._atomic import atomic_path
 
     src = Path(args.input)
     out = Path(args.out)
@@ -246,8 +249,13 @@ def _reconstruct(args) -> int:
                           **options)
         img = (np.clip(srgb_encode(np.clip(rgb, 0, 1)), 0, 1) * 255 + 0.5).astype(np.uint8)
         path = out / f"{src.stem}_{args.method.replace('+', '_')}_{c:06d}.png"
-        if not cv2.imwrite(str(path), img[..., ::-1]):
-            raise OSError(f"could not write {path}")
+        # encode in memory and write with Python: OpenCV's imwrite crashes on some names
+        # (a lone surrogate), and the PNG appears only when complete
+        ok, png = cv2.imencode(".png", img[..., ::-1])
+        if not ok:
+            raise SpikeSimFileError(f"could not encode {str(path)!r} as PNG")
+        with atomic_path(path) as tmp:
+            Path(tmp).write_bytes(png.tobytes())
         written.append(path)
     print(f"wrote {len(written)} sRGB PNG(s) to {out}")
     return 0
@@ -278,6 +286,7 @@ def _dispatch(parser, args) -> int:
     if args.command is None:
         parser.print_help()
         return 2
+    check_cli_numbers(args)
     _check_device(getattr(args, "device", None))
     if args.command == "evaluate":
         return _evaluate(args)

@@ -12,6 +12,7 @@ import argparse
 import importlib
 import sys
 
+from spikesim._validate import check_cli_numbers
 from spikesim._version import __version__
 from spikesim.cli_guard import debug_requested, run_guarded
 
@@ -63,7 +64,11 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
-    return run_guarded(f"spikesim {args.command}", lambda: args.func(args), debug=debug)
+    def call():
+        check_cli_numbers(args)
+        return args.func(args)
+
+    return run_guarded(f"spikesim {args.command}", call, debug=debug)
 
 
 if __name__ == "__main__":  # pragma: no cover
