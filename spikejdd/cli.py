@@ -108,7 +108,8 @@ def _evaluate(args) -> int:
     methods = ([m.strip() for m in args.methods.split(",") if m.strip()]
                if args.methods else standard_pipelines())
     if args.sweep == bool(args.data):
-        print("spikejdd evaluate: error: give exactly one of --data DIR or --sweep", file=sys.stderr)
+        print("spikejdd evaluate: error: give exactly one of --data DIR or --sweep",
+              file=sys.stderr)
         return 2
     if args.sweep:
         result = evaluate.sweep(methods, size=args.size, context=args.context,
