@@ -58,3 +58,54 @@ def small_stream(n=96, height=16, width=20, cfa="RGGB", noise=True, clean_twin=F
                        gt_readouts=list(gt_readouts))
 
 
+
+
+def write_manifest(path: Path, count=4, size=(64, 64), window=301, samples=2, noise=True,
+                   name="faults") -> Path:
+    """A TOML manifest of ``count`` procedural sequences of ``window * samples`` readouts."""
+    noise_table = ('[[noise]]\nmode = "paper"\nlabel = "GN"\nsigma_g = 10.0\n' if noise else
+                   '[[noise]]\nmode = "none"\nlabel = "clean"\n')
+    path.write_text(
+        f'[dataset]\nname = "{name}"\nseed = 7\nsize = [{size[0]}, {size[1]}]\n'
+        f'window = {window}\nsamples_per_sequence = {samples}\n\n'
+        '[sensor]\npreset = "ideal"\n\n' + noise_table +
+        '\n[[sources]]\nkind = "procedural"\nscenes = ["astronaut", "coffee"]\n'
+        f'motions = ["pan"]\nspeed = 500.0\ncount = {count}\nsplit = "train"\n'
+    )
+    return path
+
+
+def set_file_limit(nbytes: int):
+    """A ``preexec_fn`` giving the child an RLIMIT_FSIZE of ``nbytes``."""
+    import resource
+
+    def apply():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
+
+    return apply
+
+
+def finals(folder: Path) -> set[str]:
+    return {p.name for p in Path(folder).rglob("*.h5") if not p.name.startswith(".")}
+
+
+def children_of(pid: int) -> set[int]:
+    """Process ids whose parent is ``pid`` (Linux /proc)."""
+    out = set()
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                out.add(int(d.name))
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
