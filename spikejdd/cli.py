@@ -19,7 +19,9 @@ import os
 import shlex
 import sys
 
-from spikesim.errors import SpikeSimError
+from spikesim._validate import check_cli_numbers
+from spikesim.cli_guard import debug_requested, run_guarded
+from spikesim.errors import bad_value
 
 __all__ = ["main", "build_parser"]
 
@@ -34,6 +36,9 @@ def _size(text: str) -> tuple[int, int]:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="spikejdd", description="Spike-camera JDD reconstruction.")
+    p.add_argument("--debug", action="store_true",
+                   help="show Python tracebacks instead of one-line errors (anywhere on the "
+                        "line; or set SPIKESIM_DEBUG=1)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     ev = sub.add_parser("evaluate", help="score methods (PSNR/SSIM) and time them")
     ev.add_argument("--data", help="spikesim HDF5 file or folder")
@@ -129,7 +134,8 @@ def _evaluate(args) -> int:
 
     methods = _methods(args.methods) or standard_pipelines()
     if args.sweep == bool(args.data):
-        print("spikejdd evaluate: give exactly one of --data DIR or --sweep", file=sys.stderr)
+        print("spikejdd evaluate: error: give exactly one of --data DIR or --sweep",
+              file=sys.stderr)
         return 2
     for m in methods:  # every name checked before any work
         get_method(m)
@@ -178,7 +184,15 @@ def _train(args) -> int:
 
     cfg = {}
     if args.config:
-        cfg = json.loads(Path(args.config).read_text())
+        try:
+            cfg = json.loads(Path(args.config).read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise bad_value("--config", args.config, "an existing JSON file") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise bad_value("--config", args.config, f"a JSON file of TrainConfig keys ({exc})") \
+                from None
+        if not isinstance(cfg, dict):
+            raise bad_value("--config", args.config, "a JSON object of TrainConfig keys")
     for name in ("data", "out", "eval_data", "model", "steps", "batch_size", "crop", "lr",
                  "lr_step", "gamma", "noise_weight", "eval_every", "eval_frames",
                  "checkpoint_every", "seed", "workers", "time_limit_min", "device", "resume",
@@ -190,7 +204,7 @@ def _train(args) -> int:
     for item in args.set:
         key, sep, value = item.partition("=")
         if not sep:
-            print(f"spikejdd train: --set {item!r}: expected FIELD=VALUE", file=sys.stderr)
+            print(f"spikejdd train: error: --set {item!r}: expected FIELD=VALUE", file=sys.stderr)
             return 2
         try:
             overrides[key.strip()] = json.loads(value)
@@ -205,7 +219,7 @@ def _train(args) -> int:
     if args.quiet:
         cfg["progress"] = False
     if not cfg.get("data"):
-        print("spikejdd train: give --data DIR (or a --config with 'data')", file=sys.stderr)
+        print("spikejdd train: error: give --data DIR (or a --config with 'data')", file=sys.stderr)
         return 2
     if args.synthesize:
         data = Path(cfg["data"])
@@ -272,7 +286,6 @@ def _reconstruct(args) -> int:
         def window(c, length):
             start, _ = window_bounds(n, c, length)
             return seq.read_window(start, length)
-    import cv2
 
     out.mkdir(parents=True, exist_ok=True)
     length = min(args.context or 41, n)
@@ -289,15 +302,13 @@ def _reconstruct(args) -> int:
             tiles.append(rgb)
             img = (np.clip(_srgb(rgb), 0, 1) * 255 + 0.5).astype(np.uint8)
             path = out / f"{src.stem}_{_slug(m.name)}_{c:06d}.png"
-            if not cv2.imwrite(str(path), img[..., ::-1]):
-                raise OSError(f"could not write {path}")
+            _write_png(path, img)
             written.append(path)
             bar.update()
         if len(methods) > 1:
             path = out / f"{src.stem}_panel_{c:06d}.png"
             panel = panel_image(tiles, [m.name for m in methods], crop=max(spikes.shape[1:]))
-            if not cv2.imwrite(str(path), panel[..., ::-1]):
-                raise OSError(f"could not write {path}")
+            _write_png(path, panel)
             written.append(path)
     bar.close()
     for name, w in used.items():
@@ -320,29 +331,58 @@ def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_")[:80]
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    argv = sys.argv[1:] if argv is None else list(argv)
-    args = parser.parse_args(argv)
-    args.argv = argv  # recorded in reports as the command that made them
-    try:
-        if args.command == "evaluate":
-            return _evaluate(args)
-        if args.command == "train":
-            return _train(args)
-        if args.command == "reconstruct":
-            return _reconstruct(args)
-        if args.command == "methods":
-            from spikejdd import list_methods
+def _write_png(path, rgb8) -> None:
+    """Write an (H, W, 3) uint8 RGB image as PNG, atomically.  Encoded in memory and
+    written by Python: OpenCV's imwrite crashes on some names (a lone surrogate)."""
+    from pathlib import Path
 
-            for name, desc in list_methods().items():
-                print(f"{name:32s} {desc}")
-            return 0
+    import cv2
+
+    from spikesim.errors import SpikeSimFileError
+    from spikesim.io._atomic import atomic_path
+
+    ok, png = cv2.imencode(".png", rgb8[..., ::-1])
+    if not ok:
+        raise SpikeSimFileError(f"could not encode {str(path)!r} as PNG")
+    with atomic_path(path) as tmp:
+        Path(tmp).write_bytes(png.tobytes())
+
+
+def _dispatch(parser, args) -> int:
+    if args.command is None:
         parser.print_help()
         return 2
-    except SpikeSimError as exc:
-        print(f"spikejdd: error: {exc}", file=sys.stderr)
-        return 1
+    check_cli_numbers(args)
+    device = getattr(args, "device", None)
+    if device is not None and str(device).strip().lower() != "auto":
+        from spikejdd.runtime import check_device
+
+        check_device(device)
+    if args.command == "evaluate":
+        return _evaluate(args)
+    if args.command == "train":
+        return _train(args)
+    if args.command == "reconstruct":
+        return _reconstruct(args)
+    if args.command == "methods":
+        from spikejdd import list_methods
+
+        for name, desc in list_methods().items():
+            print(f"{name:32s} {desc}")
+        return 0
+    parser.print_help()
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = debug_requested(argv)
+    argv = [a for a in argv if a != "--debug"]
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.argv = argv  # recorded in reports as the command that made them
+    label = f"spikejdd {args.command}" if args.command else "spikejdd"
+    return run_guarded(label, lambda: _dispatch(parser, args), debug=debug)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -104,6 +104,13 @@ class TrainConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise bad_value(name, v, "an integer >= 1")
+        if self.threads is not None and (isinstance(self.threads, bool) or
+                                         not isinstance(self.threads, int) or self.threads < 1):
+            raise bad_value("threads", self.threads, "an integer >= 1 (or unset: torch's choice)")
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 0:
+            raise bad_value("workers", self.workers, "an integer >= 0 (data-loader processes)")
+        if self.time_limit_min is not None and not (self.time_limit_min > 0):
+            raise bad_value("time_limit_min", self.time_limit_min, "minutes > 0 (or unset)")
         if not (self.lr > 0 and 0 < self.gamma <= 1 and self.noise_weight >= 0):
             raise bad_value("lr/gamma/noise_weight", (self.lr, self.gamma, self.noise_weight),
                             "lr > 0, 0 < gamma <= 1, noise_weight >= 0")

@@ -12,8 +12,9 @@ import argparse
 import importlib
 import sys
 
+from spikesim._validate import check_cli_numbers
 from spikesim._version import __version__
-from spikesim.errors import SpikeSimError
+from spikesim.cli_guard import debug_requested, run_guarded
 
 #: Modules under spikesim.commands, in the order their commands are listed.
 COMMAND_MODULES = (
@@ -26,6 +27,7 @@ COMMAND_MODULES = (
     "convert",
     "preview",
     "analyze",
+    "verify",
 )
 
 EXIT_OK = 0
@@ -38,6 +40,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="spikesim", description="Bayer spike-camera simulator (spikesim)."
     )
     parser.add_argument("--version", action="version", version=f"spikesim {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show Python tracebacks instead of one-line errors (anywhere on "
+                             "the line; or set SPIKESIM_DEBUG=1)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
         try:
@@ -51,19 +56,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = debug_requested(argv)
+    argv = [a for a in argv if a != "--debug"]
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
-    try:
-        return int(args.func(args) or EXIT_OK)
-    except SpikeSimError as exc:
-        print(f"spikesim {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_ERROR
-    except KeyboardInterrupt:
-        print(f"spikesim {args.command}: interrupted", file=sys.stderr)
-        return 130
+    def call():
+        check_cli_numbers(args)
+        return args.func(args)
+
+    return run_guarded(f"spikesim {args.command}", call, debug=debug)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -33,16 +33,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from spikesim import rng
+from spikesim._validate import is_real
 from spikesim.errors import bad_value
 
 __all__ = ["PaperNoise", "PhysicalNoise", "noise_from_dict", "FixedPattern", "fixed_pattern"]
 
 
 def _check_nonneg(name: str, value: float, upper: float = math.inf) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise bad_value(name, value, f"a real number in [0, {upper}]") from None
+    if not is_real(value):
+        raise bad_value(name, value, f"a real number in [0, {upper}]")
+    v = float(value)
     if not (math.isfinite(v) and 0.0 <= v <= upper):
         raise bad_value(name, value, f"a finite number in [0, {upper}]")
     return v

@@ -17,6 +17,7 @@ import json
 import math
 from dataclasses import dataclass
 
+from spikesim._validate import is_int, is_real
 from spikesim.cfa import normalize_cfa
 from spikesim.errors import bad_value
 from spikesim.noise import PaperNoise, PhysicalNoise, noise_from_dict
@@ -29,16 +30,13 @@ MAX_SIDE = 1 << 16
 
 
 def _positive(name: str, value, unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if not is_real(value) or not (math.isfinite(float(value)) and float(value) > 0):
         raise bad_value(name, value, f"a finite number > 0 ({unit})")
-    v = float(value)
-    if not (math.isfinite(v) and v > 0):
-        raise bad_value(name, value, f"a finite number > 0 ({unit})")
-    return v
+    return float(value)
 
 
 def _side(name: str, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SIDE:
+    if not is_int(value) or not 1 <= value <= MAX_SIDE:
         raise bad_value(name, value, f"an integer number of pixels in [1, {MAX_SIDE}]")
     return int(value)
 

@@ -25,6 +25,7 @@ from spikesim.noise import PaperNoise, PhysicalNoise, fixed_pattern
 from spikesim.scenes.static import validate_radiance
 from spikesim.schedule import build_schedule, key_readout_times
 from spikesim.sensor import Sensor
+from spikesim.workload import check_key_frames
 
 __all__ = ["SpikeStream", "SpikeChunk", "SimulationRun", "simulate", "simulate_chunks"]
 
@@ -153,6 +154,7 @@ class SimulationRun:
         self.scene = scene
         self.sensor = sensor
         self.n_readouts = _check_int("n_readouts", n_readouts, 1)
+        check_key_frames(scene, self.n_readouts / sensor.clock_hz)
         self.seed = _check_int("seed", seed, 0, 2**64 - 1)
         self.clean_twin = bool(clean_twin)
         if gt_readouts is None:

@@ -166,6 +166,10 @@ class SJDDConfig:
         return cls(**d)
 
     def replace(self, **changes) -> SJDDConfig:
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise bad_value("model field", unknown[0], f"a name among {sorted(known)}")
         return replace(self, **changes)
 
     @classmethod

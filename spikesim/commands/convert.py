@@ -114,6 +114,10 @@ def run(args) -> int:
         print(f"color_mode {summary['color_mode']}; skipped {len(summary['skipped'])} GT "
               "readouts without a full 39-readout window")
         return 0
+    from spikesim.errors import bad_value
+
+    if not args.dst.lower().endswith((".dat", ".h5", ".hdf5")):
+        raise bad_value("DST", args.dst, "a path ending in .dat, .h5 or .hdf5")
     src = source_from_args(args, args.src)
     out = convert(src, args.dst, args.start, args.length, args.crop, out_flip=args.out_flip,
                   compression=args.compression, progress=not args.quiet)

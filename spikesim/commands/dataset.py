@@ -42,6 +42,11 @@ def run(args) -> int:
         return 0
     if not args.out:
         raise SpikeSimValueError("--out is required (the output folder)")
+    from spikesim._validate import check_int
+
+    check_int("--workers", args.workers, 1, 1024, unit="processes")
+    if args.limit is not None:
+        check_int("--limit", args.limit, 1, unit="sequences")
     summary = build_dataset(manifest, args.out, workers=args.workers, scheduler=args.scheduler,
                             dask_local=args.dask_local, limit=args.limit)
     print(summary.line())

@@ -80,8 +80,11 @@ def _text(info: dict) -> str:
 
 
 def run(args) -> int:
+    from spikesim._validate import check_int
     from spikesim.io.index import open_dataset
     from spikesim.io.source import is_dat
+
+    check_int("--stats-readouts", args.stats_readouts, 1, unit="readouts")
 
     if args.all and not is_dat(args.path):
         sources = list(open_dataset(args.path))

@@ -54,10 +54,22 @@ def _gif_readouts(n: int, first: int | None, frames: int, step: int | None, wind
 
 
 def run(args) -> int:
+    from spikesim._validate import check_int, check_real
+    from spikesim.errors import bad_value
     from spikesim.io.preview import render_frames, save_image
 
+    check_real("--fps", args.fps, 0, 100, low_open=True, unit="GIF frames per second")
+    if args.rate is not None:
+        check_real("--rate", args.rate, 0, 1, low_open=True, unit="spikes per readout")
+    check_int("--window", args.window, 1, unit="readouts")
+    if not args.out.lower().endswith((".png", ".gif")):
+        raise bad_value("--out", args.out, "a path ending in .png or .gif")
     src = source_from_args(args, args.path)
     n = src.n_readouts
+    if args.window > n:
+        raise bad_value("--window", args.window, f"at most the stream's {n} readouts")
+    if args.readout is not None:
+        check_int("--readout", args.readout, 0, n - 1, unit="readout index")
     if args.out.lower().endswith(".gif"):
         readouts = _gif_readouts(n, args.readout, args.frames, args.step, args.window)
     else:

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 from spikesim.errors import bad_value
+from spikesim.workload import RunawayWorkWarning
 
 
 def register(sub) -> None:
@@ -22,6 +24,9 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--clean-twin", action="store_true", help="also store the noise-free twin")
     p.add_argument("--out", required=True, help="FILE.h5 or FILE.dat")
+    p.add_argument("--force", action="store_true",
+                   help="run even when the output looks larger than the free disk space or "
+                        "the scene needs an unusually large number of key frames")
     p.set_defaults(func=run)
 
 
@@ -41,7 +46,13 @@ def parse_overrides(items: list[str]) -> dict:
 def run(args) -> int:
     import spikesim as ss
     from spikesim import io
+    from spikesim._validate import check_int, check_real
+    from spikesim.workload import check_free_space, require_reasonable_key_frames
 
+    check_int("--readouts", args.readouts, 1, 2**53, unit="readouts")
+    check_int("--seed", args.seed, 0, 2**64 - 1)
+    if args.fps is not None:
+        check_real("--fps", args.fps, 0, low_open=True, unit="video frames per second")
     overrides = parse_overrides(args.set)
     if args.size:
         try:
@@ -59,8 +70,14 @@ def run(args) -> int:
         scene = ss.scenes.video(args.scene, fps=args.fps, resize=sensor.shape)
     else:
         scene = ss.scenes.procedural(args.scene, motion=args.motion, size=sensor.shape)
-    run_ = ss.simulate_chunks(scene, sensor, args.readouts, seed=args.seed,
-                              clean_twin=args.clean_twin, progress=True)
+    packed_bytes = args.readouts * sensor.height * ((sensor.width + 7) // 8)
+    if not args.force:
+        check_free_space(out, packed_bytes * (2 if args.clean_twin else 1))
+        require_reasonable_key_frames(scene, args.readouts / sensor.clock_hz)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RunawayWorkWarning)  # checked above (or --force)
+        run_ = ss.simulate_chunks(scene, sensor, args.readouts, seed=args.seed,
+                                  clean_twin=args.clean_twin, progress=True)
     if out.suffix.lower() == ".dat":
         if sensor.cfa is not None:
             print("note: .dat stores bits only; the CFA pattern is not recorded")

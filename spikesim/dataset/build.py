@@ -4,15 +4,22 @@
   the sequence id, so serial, process-pool and Dask runs give identical files.
 * A re-run skips sequences whose files exist and validate (same seed, sensor,
   readouts); stale temporary files of killed workers are removed first.
-* A failing sequence is reported with its error and does not stop the others;
-  a worker process that dies fails only the tasks it held, and the pool is
-  restarted for the rest.
+* A failing sequence is reported with its error and does not stop the others.
+  A worker process that dies breaks its pool: the pool is rebuilt for the
+  rest, and every task the broken pool still held is run again alone in a
+  fresh process, so only the task that kills its worker fails.
+* Pool workers die with their parent and never rename a file into place after
+  it is gone (``_watch.py``).  SIGTERM or Ctrl-C stops the workers, removes
+  their temporary files and still writes ``build_summary.json``.
+* Stale temporary files of killed writers are removed; those of another live
+  run into the same folder are left alone (``spikesim.io._atomic``).
 * Each split folder gets an ``index.json`` (``spikesim.io.build_index``), and
   the output folder ``plan.json`` (every task) and ``build_summary.json``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import multiprocessing as mp
@@ -24,14 +31,17 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from spikesim.dataset._watch import init_worker
 from spikesim.dataset.manifest import Manifest
 from spikesim.dataset.plan import plan_tasks
 from spikesim.dataset.worker import run_task, validate_existing
-from spikesim.errors import bad_value
+from spikesim.errors import SpikeSimFileError, bad_value
 
 __all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
 
 _STAGES = ("scene", "flow", "kernel", "write", "total")
+#: Seconds to wait for a Dask scheduler to answer.
+SCHEDULER_TIMEOUT_S = 10
 
 
 @dataclass
@@ -68,17 +78,9 @@ class BuildSummary:
 
 
 def _remove_stale_temps(out: Path, splits) -> int:
-    from spikesim.io._atomic import is_temp_name
+    from spikesim.io._atomic import remove_stale_temps
 
-    removed = 0
-    for split in splits:
-        folder = out / split
-        if folder.is_dir():
-            for p in folder.iterdir():
-                if is_temp_name(p):
-                    p.unlink(missing_ok=True)
-                    removed += 1
-    return removed
+    return sum(remove_stale_temps(out / split) for split in splits if (out / split).is_dir())
 
 
 def _check_workers(workers) -> int:
@@ -111,7 +113,14 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     if dask_local is not None:
         _check_workers(dask_local)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise SpikeSimFileError(f"output folder {str(out)!r} is an existing file: give a folder "
+                                "name (new or holding an earlier build)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SpikeSimFileError(f"cannot create output folder {str(out)!r}: "
+                                f"{exc.strerror or exc}") from None
     tasks = [t.to_dict() for t in plan_tasks(manifest)]
     if limit is not None:
         if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
@@ -159,6 +168,13 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         else:
             summary.executor = f"{workers} local processes"
             _run_pool(pending, out, workers, on_result)
+    except BaseException:
+        # stopped (SIGTERM, Ctrl-C) or a scheduler error: record what was done
+        summary.seconds = time.perf_counter() - t0
+        summary.executor += " (interrupted)"
+        with contextlib.suppress(Exception):
+            _write_json(out / "build_summary.json", summary.to_dict())
+        raise
     finally:
         bar.close()
     summary.seconds = time.perf_counter() - t0
@@ -169,13 +185,30 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     return summary
 
 
+def _new_pool(workers: int) -> ProcessPoolExecutor:
+    return ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                               initializer=init_worker, initargs=(os.getpid(),))
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Cancel what is queued and SIGTERM the workers (each removes its temporary file)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.join(timeout=10)
+
+
 def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
     threads = max(1, (os.cpu_count() or 1) // workers)
     queue = list(pending)
-    ctx = mp.get_context("spawn")
     while queue:
-        lost: list[tuple[dict, BaseException]] = []
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        lost: list[dict] = []
+        pool = _new_pool(workers)
+        try:
             futures = {}
             while (queue or futures) and not lost:
                 while queue and len(futures) < 2 * workers:
@@ -186,17 +219,40 @@ def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
                     t = futures.pop(fut)
                     try:
                         on_result(fut.result())
-                    except BrokenProcessPool as exc:
-                        lost.append((t, exc))
+                    except BrokenProcessPool:
+                        lost.append(t)
             # the pool is unusable: what it still held is lost too
-            lost += [(t, BrokenProcessPool("worker process died")) for t in futures.values()]
+            lost += list(futures.values())
+            pool.shutdown(wait=True)
+        except BaseException:
+            _stop_pool(pool)
+            raise
         # only now, with every worker of the broken pool stopped, is each
-        # lost task's file final (complete and renamed, or never renamed)
-        for t, exc in lost:
-            on_result(_lost(t, exc, out))
+        # lost task's file final (complete and renamed, or never renamed);
+        # the others are run again, each alone, so that only the culprit fails
+        for t in lost:
+            on_result(_retry_alone(t, out, threads))
 
 
-def _lost(task: dict, exc: BaseException, out: Path | None = None) -> dict:
+def _retry_alone(task: dict, out: Path, threads: int) -> dict:
+    """Run a task lost with a broken pool again in a fresh process of its own."""
+    if validate_existing(out / task["file"], task):
+        return _lost(task, None, out)
+    pool = _new_pool(1)
+    try:
+        rec = pool.submit(run_task, task, str(out), threads).result()
+        pool.shutdown(wait=True)
+        return rec
+    except BrokenProcessPool:
+        pool.shutdown(wait=True)
+        return _lost(task, BrokenProcessPool("its worker process died (killed or crashed) "
+                                             "while generating this sequence, twice"), out)
+    except BaseException:
+        _stop_pool(pool)
+        raise
+
+
+def _lost(task: dict, exc: BaseException | None, out: Path | None = None) -> dict:
     """The record of a task whose result was lost with its worker.
 
     A task can finish (its file renamed into place) in a surviving worker just
@@ -227,7 +283,13 @@ def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) 
                         "dask[distributed] installed (pip install 'spikesim[dist]')") from exc
     cluster = None
     if scheduler is not None:
-        client = Client(scheduler)
+        try:
+            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            raise SpikeSimFileError(
+                f"cannot reach the Dask scheduler {scheduler!r} ({type(exc).__name__}: {exc}): "
+                "check the address (tcp://HOST:PORT) and that the scheduler is running"
+            ) from None
         label = f"dask scheduler {scheduler}"
     else:
         cluster = LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True,

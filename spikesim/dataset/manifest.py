@@ -218,6 +218,9 @@ def _parse_source(i: int, t: dict, base: Path) -> SourceSpec:
         root = base / root
     if not root.exists():
         raise bad_value(f"{path}.path", str(root), "an existing file or folder")
+    if root.suffix.lower() in (".h5", ".hdf5", ".dat"):
+        raise bad_value(f"{path}.path", str(root),
+                        "a video file or a folder of frames (a spike file is not a video source)")
     fps = t.get("fps")
     if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
         raise bad_value(f"{path}.fps", fps, "a frame rate > 0 (frames per second)")
@@ -343,7 +346,10 @@ def load_manifest(path_or_name: str | Path) -> Manifest:
     if not path.is_file():
         raise SpikeSimFileError(f"manifest {str(path)!r} does not exist")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise bad_value("manifest", str(path), f"a UTF-8 text file of TOML (byte {exc.start} "
+                        "is not UTF-8: a binary file, or saved in another encoding?)") from None
     except tomllib.TOMLDecodeError as exc:
         raise bad_value("manifest", str(path), f"valid TOML ({exc})") from None
     return parse_manifest(data, origin=text_path, base=path.parent)

@@ -27,6 +27,7 @@ from spikesim.io.h5 import (
 )
 from spikesim.io.index import Dataset, build_index, load_index, open_dataset
 from spikesim.io.source import open_source
+from spikesim.io.verify import verify, verify_file
 
 __all__ = [
     "COMPRESSIONS",
@@ -50,6 +51,8 @@ __all__ = [
     "read_dat",
     "read_h5",
     "read_header",
+    "verify",
+    "verify_file",
     "write_dat",
     "write_h5",
 ]

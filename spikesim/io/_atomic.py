@@ -4,21 +4,43 @@ A crash, an exception or a killed process while writing leaves at most a
 temporary file (``.NAME.tmp-<pid>-<random>`` beside the target), never a file
 under the final name.  ``os.replace`` is atomic on POSIX and Windows when both
 names are on the same file system, which a sibling temporary guarantees.
+
+A temporary left by a process killed outright (``kill -9``, power loss) is
+*stale*: its writer's process id is no longer alive and no process holds the
+advisory lock the writers keep on it (:func:`lock_temp`).  Every new write of
+a name removes that name's stale temporaries first, and
+:func:`remove_stale_temps` clears a whole folder; a temporary of a live writer
+(another run into the same folder) is never touched.
+
+A process may register a check that runs just before each rename
+(:func:`set_rename_guard`): a dataset worker whose parent has died raises
+there, so it never renames a file into place after the parent is gone.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from spikesim.errors import SpikeSimFileError
 
-__all__ = ["atomic_path", "temp_name_for", "is_temp_name"]
+__all__ = [
+    "atomic_path",
+    "is_stale_temp",
+    "is_temp_name",
+    "lock_temp",
+    "remove_stale_temps",
+    "set_rename_guard",
+    "temp_name_for",
+]
 
 _TMP_MARK = ".tmp-"
+_TMP_PID = re.compile(r"\.tmp-(\d+)-[0-9a-f]+")
+_rename_guard: Callable[[Path], None] | None = None
 
 
 def temp_name_for(final: Path) -> Path:
@@ -32,9 +54,93 @@ def is_temp_name(path: str | os.PathLike) -> bool:
     return name.startswith(".") and _TMP_MARK in name
 
 
+def set_rename_guard(guard: Callable[[Path], None] | None) -> None:
+    """Run ``guard(final)`` before every rename into place in this process (None: no check).
+
+    The guard raises to refuse the rename; the temporary file is then deleted.
+    """
+    global _rename_guard
+    _rename_guard = guard
+
+
+def lock_temp(fd: int) -> None:
+    """Hold an advisory lock on an open temporary so that others see it is in use.
+
+    The lock dies with the process (whatever kills it), which is what lets
+    :func:`remove_stale_temps` tell a killed writer's file from a live one.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: the process id check alone
+        return
+    with contextlib.suppress(OSError):
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def _locked_by_other(path: Path) -> bool:
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover
+        return False
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)  # closing releases the probe's own lock
+    return False
+
+
+def is_stale_temp(path: str | os.PathLike) -> bool:
+    """True for a temporary whose writer is gone (dead process id, no lock held)."""
+    path = Path(path)
+    m = _TMP_PID.search(path.name)
+    if not is_temp_name(path) or m is None:
+        return False
+    return not _pid_alive(int(m.group(1))) and not _locked_by_other(path)
+
+
+def remove_stale_temps(folder: str | os.PathLike, name: str | None = None) -> int:
+    """Delete the stale temporaries in ``folder`` (only those of ``name`` when given).
+
+    Returns how many were removed.  Temporaries of live writers stay.
+    """
+    folder = Path(folder)
+    prefix = f".{name}{_TMP_MARK}" if name is not None else "."
+    removed = 0
+    try:
+        entries = list(folder.iterdir())
+    except OSError:
+        return 0
+    for p in entries:
+        if p.name.startswith(prefix) and is_stale_temp(p):
+            with contextlib.suppress(OSError):
+                p.unlink()
+                removed += 1
+    return removed
+
+
 @contextlib.contextmanager
 def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Path]:
     """Yield a temporary path; on normal exit rename it to ``final``, else delete it.
+
+    Stale temporaries of ``final`` left by killed writers are removed first.
 
     Parameters
     ----------
@@ -51,9 +157,12 @@ def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Pa
         raise SpikeSimFileError(f"output path {str(final)!r} is a folder, expected a file name")
     if not overwrite and final.exists():
         raise SpikeSimFileError(f"output file {str(final)!r} exists (pass overwrite=True)")
+    remove_stale_temps(parent, final.name)
     tmp = temp_name_for(final)
     try:
         yield tmp
+        if _rename_guard is not None:
+            _rename_guard(final)
         os.replace(tmp, final)
     except BaseException:
         with contextlib.suppress(OSError):

@@ -31,8 +31,9 @@ import numpy as np
 
 from spikesim.cfa import normalize_cfa
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimTypeError, bad_value
-from spikesim.io._atomic import atomic_path
+from spikesim.io._atomic import atomic_path, lock_temp
 from spikesim.io._decode import decode_frames
+from spikesim.io._guard import write_error
 from spikesim.io._window import check_crop, check_window
 
 __all__ = [
@@ -377,11 +378,28 @@ class DatWriter:
     def __enter__(self) -> DatWriter:
         self._ctx = atomic_path(self.path, overwrite=self.overwrite)
         tmp = self._ctx.__enter__()
-        self._fh = open(tmp, "wb")
+        try:
+            self._fh = open(tmp, "wb")  # noqa: SIM115 - closed in __exit__
+            lock_temp(self._fh.fileno())
+        except OSError as exc:
+            err = write_error(self.path, exc)
+            self._ctx.__exit__(type(err), err, None)
+            raise err from None
         return self
 
     def __exit__(self, exc_type, exc, tb) -> bool:
-        self._fh.close()
+        if exc is None:
+            try:
+                self._fh.close()
+            except OSError as err:  # the last buffered bytes did not fit
+                failed = write_error(self.path, err)
+                self._ctx.__exit__(type(failed), failed, None)
+                raise failed from None
+            return bool(self._ctx.__exit__(None, None, None))
+        try:
+            self._fh.close()
+        except OSError:
+            pass
         return bool(self._ctx.__exit__(exc_type, exc, tb))
 
     def write_packed(self, packed: np.ndarray) -> None:
@@ -391,7 +409,10 @@ class DatWriter:
             raise bad_value(
                 "packed", f"{packed.dtype} {packed.shape}", f"uint8 (t, {want[0]}, {want[1]})"
             )
-        self._fh.write(encode_dat_frames(packed, self.width, self.flip))
+        try:
+            self._fh.write(encode_dat_frames(packed, self.width, self.flip))
+        except OSError as exc:
+            raise write_error(self.path, exc) from None
         self.n_readouts += packed.shape[0]
 
     def write(self, frames: np.ndarray) -> None:

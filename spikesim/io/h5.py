@@ -19,7 +19,11 @@ Root attributes: ``format="spikesim"``, ``format_version``,
 configuration) and ``meta`` (JSON of the whole metadata dict).
 
 Files are written to a temporary sibling and renamed into place only when
-complete (:mod:`spikesim.io._atomic`).  Readers open the file lazily and
+complete (:mod:`spikesim.io._atomic`); a full disk or a file-size limit gives
+a :class:`~spikesim.errors.SpikeSimFileError` and no file
+(:mod:`spikesim.io._guard`).  Every dataset carries the Fletcher-32 checksum
+filter (after compression), so a damaged chunk is an error when read, never
+different bits.  Readers open the file lazily and
 reopen it after a fork, and a :class:`Sequence` pickles without its handle,
 so it is safe to hand to spawned or forked worker processes.
 """
@@ -27,6 +31,7 @@ so it is safe to hand to spawned or forked worker processes.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Iterable
 from pathlib import Path
@@ -38,6 +43,7 @@ from spikesim._version import __version__
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimTypeError, bad_value
 from spikesim.io._atomic import atomic_path
 from spikesim.io._compression import DEFAULT_COMPRESSION, compression_kwargs, have_hdf5plugin
+from spikesim.io._guard import GuardedFile, write_error
 from spikesim.io._window import check_crop, check_window, crop_packed
 
 __all__ = [
@@ -63,6 +69,7 @@ CHUNK_BYTES = 16
 #: Per-dataset chunk cache of a reader (bytes).
 READ_CACHE_BYTES = 8 << 20
 
+_CFA_NAMES = ("mono", "RGGB", "BGGR", "GRBG", "GBRG")
 _REQUIRED_ATTRS = ("format_version", "height", "width", "cfa", "clock_hz", "bitorder", "meta")
 
 
@@ -148,19 +155,31 @@ class H5Writer:
         self.overwrite = overwrite
         self.n_readouts = 0
         self._file = None
+        self._guard = None
         self._ctx = None
 
     def __enter__(self) -> H5Writer:
         self._ctx = atomic_path(self.path, overwrite=self.overwrite)
         tmp = self._ctx.__enter__()
         try:
+            self._guard = GuardedFile(tmp)
             # HDF5 >= 1.8 layout: attributes of any size (dense storage), readable since 2008.
-            self._file = h5py.File(tmp, "w", libver=("v108", "latest"))
+            self._file = h5py.File(self._guard, "w", libver=("v108", "latest"))
             self._create()
+            self._check_io()
+        except OSError as exc:
+            err = exc if isinstance(exc, SpikeSimFileError) else write_error(self.path, exc)
+            self._abort(err)
+            raise err from None
         except BaseException as exc:
             self._abort(exc)
             raise
         return self
+
+    def _check_io(self) -> None:
+        """Raise the first write failure of the temporary file (full disk, size limit)."""
+        if self._guard is not None and self._guard.error is not None:
+            raise write_error(self.path, self._guard.error)
 
     def _create(self) -> None:
         f = self._file
@@ -169,19 +188,26 @@ class H5Writer:
         names = ["spikes"] + (["clean_spikes"] if self.clean else [])
         for name in names:
             f.create_dataset(name, shape=(0, h, nb), maxshape=(None, h, nb), dtype=np.uint8,
-                             chunks=chunks, **self._filter)
-        gt_filter = self._filter if self._filter else {}
+                             chunks=chunks, fletcher32=True, **self._filter)
         f.create_dataset("gt", shape=(0, h, w, 3), maxshape=(None, h, w, 3), dtype=np.float32,
-                         chunks=(1, min(h, 256), min(w, 256), 3), **gt_filter)
-        f.create_dataset("gt_index", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,))
+                         chunks=(1, min(h, 256), min(w, 256), 3), fletcher32=True,
+                         **self._filter)
+        f.create_dataset("gt_index", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,),
+                         fletcher32=True)
 
     def _abort(self, exc: BaseException) -> None:
-        if self._file is not None:
-            try:
-                self._file.close()
-            finally:
-                self._file = None
-        self._ctx.__exit__(type(exc), exc, exc.__traceback__)
+        try:
+            if self._file is not None:
+                try:
+                    self._file.close()
+                except Exception:  # noqa: BLE001 - the file is being discarded
+                    pass
+        finally:
+            self._file = None
+            if self._guard is not None:
+                self._guard.close()
+                self._guard = None
+            self._ctx.__exit__(type(exc), exc, exc.__traceback__)
 
     def _check_packed(self, name: str, packed) -> np.ndarray:
         arr = np.asarray(packed)
@@ -208,6 +234,7 @@ class H5Writer:
             ds.resize(t1, axis=0)
             ds[t0:t1] = arr
         self.n_readouts = t1
+        self._check_io()
 
     def add_gt(self, gt, gt_index) -> None:
         """Append ground-truth frames (k, H, W, 3) linear RGB tied to readouts ``gt_index``."""
@@ -227,6 +254,7 @@ class H5Writer:
             ds = self._file[name]
             ds.resize(k1, axis=0)
             ds[k0:k1] = arr.astype(dtype, copy=False)
+        self._check_io()
 
     def _finish(self) -> None:
         f = self._file
@@ -269,6 +297,9 @@ class H5Writer:
             self._finish()
             self._file.close()
             self._file = None
+            self._check_io()
+            self._guard.close()
+            self._guard = None
         except BaseException as err:
             self._abort(err)
             raise
@@ -458,13 +489,14 @@ class Sequence:
                             f"nothing: {self.name!r} has no ground truth")
         top, left, h, w = check_crop(crop, self.height, self.width)
         try:
-            return self._h5()["gt"][int(k) % n, top:top + h, left:left + w, :]
+            return _finite_gt(self.path, self._h5()["gt"][int(k) % n, top:top + h,
+                                                            left:left + w, :])
         except OSError as exc:
             raise _read_error(self.path, exc) from exc
 
     def read_all_gt(self) -> np.ndarray:
         try:
-            return self._h5()["gt"][:]
+            return _finite_gt(self.path, self._h5()["gt"][:])
         except OSError as exc:
             raise _read_error(self.path, exc) from exc
 
@@ -481,6 +513,15 @@ class Sequence:
         )
 
 
+def _finite_gt(path: Path, gt: np.ndarray) -> np.ndarray:
+    if gt.size and not np.isfinite(gt).all():
+        raise SpikeSimFormatError(
+            f"{str(path)!r}: its ground truth holds NaN or infinite values (damaged or "
+            "written by another tool): regenerate the file"
+        )
+    return gt
+
+
 def _read_error(path: Path, exc: Exception) -> SpikeSimFormatError:
     text = str(exc)
     low = text.lower()
@@ -490,7 +531,14 @@ def _read_error(path: Path, exc: Exception) -> SpikeSimFormatError:
             f"{str(path)!r}: its data use a compression filter this HDF5 cannot decode{hint}: "
             f"{text}"
         )
-    return SpikeSimFormatError(f"{str(path)!r}: damaged data, cannot be read ({text})")
+    if "fletcher" in low or "checksum" in low:
+        return SpikeSimFormatError(
+            f"{str(path)!r}: damaged data (a chunk fails its checksum): restore or regenerate "
+            "the file"
+        )
+    return SpikeSimFormatError(
+        f"{str(path)!r}: damaged data, cannot be read ({text}): restore or regenerate the file"
+    )
 
 
 def _open_checked(path: Path) -> h5py.File:
@@ -569,6 +617,29 @@ def _header_of(f: h5py.File, path: Path) -> dict:
         raise SpikeSimFormatError(
             f"{str(path)!r}: height={height}, width={width} or meta is not valid"
         )
+    if not (math.isfinite(clock_hz) and clock_hz >= 0):
+        raise SpikeSimFormatError(
+            f"{str(path)!r}: clock_hz={clock_hz!r} is not a readout clock (a finite number of "
+            "Hz > 0, or 0 when unknown)"
+        )
+    cfa_text = _attr_text(attrs["cfa"])
+    if cfa_text not in _CFA_NAMES:
+        raise SpikeSimFormatError(
+            f"{str(path)!r}: cfa={cfa_text!r} is not a Bayer pattern (one of {_CFA_NAMES})"
+        )
+    for key in ("sensor", "noise", "scene"):
+        if key in attrs:
+            try:
+                value = json.loads(_attr_text(attrs[key]))
+            except (TypeError, ValueError) as exc:
+                raise SpikeSimFormatError(
+                    f"{str(path)!r}: the {key!r} attribute is not valid JSON ({exc})"
+                ) from None
+            if value is not None and not isinstance(value, dict):
+                raise SpikeSimFormatError(
+                    f"{str(path)!r}: the {key!r} attribute is {type(value).__name__}, "
+                    "expected a JSON object"
+                )
     nb = (width + 7) // 8
     spikes = _check_dataset(f, path, "spikes", np.uint8, (height, nb))
     has_clean = "clean_spikes" in f
@@ -591,7 +662,14 @@ def _header_of(f: h5py.File, path: Path) -> dict:
         )
     if n == 0:
         raise SpikeSimFormatError(f"{str(path)!r}: the spikes dataset holds no readout")
-    cfa = _attr_text(attrs["cfa"])
+    for where, stated in (("attribute", attrs.get("n_readouts")),
+                          ("meta", meta.get("n_readouts"))):
+        if stated is not None and (not isinstance(stated, (int, np.integer)) or stated != n):
+            raise SpikeSimFormatError(
+                f"{str(path)!r}: n_readouts={stated!r} ({where}) disagrees with the {n} "
+                "readouts of the spikes dataset: the file was altered or damaged"
+            )
+    cfa = cfa_text
     meta["gt_index"] = gt_index.tolist()
     return {
         "height": height, "width": width, "cfa": None if cfa == "mono" else cfa,

@@ -160,18 +160,17 @@ def test_failing_sequence_is_reported_and_rerun_completes(tmp_path, factory_modu
 
 
 def test_killed_worker_loses_nothing(tmp_path, factory_module):
+    """A worker dies once mid-sequence: the tasks its pool held run again, alone, and
+    every sequence completes (a worker that always dies: tests/faults/test_kill.py)."""
     m = parse_manifest(small_manifest(count=2, extra_sources=[_py_source("kill")]))
     out = tmp_path / "out"
     s = build_dataset(m, out, workers=2, progress=False)
-    assert s.failed >= 1
-    assert all("died" in r["error"] or "Broken" in r["error"] for r in s.failures)
-    finals = {p.name for p in (out / "inj").glob("*.h5")}
-    for r in s.failures:  # no partial file under a final name
-        assert Path(r["file"]).name not in finals
-    s2 = build_dataset(m, out, workers=2, progress=False)
-    assert s2.failed == 0 and s2.done == s.failed
+    assert (factory_module / "killed.marker").exists()  # a worker did die
+    assert s.failed == 0 and s.done == 6
     assert not [p for p in (out / "inj").iterdir() if p.name.startswith(".")]  # temps gone
     assert len(open_dataset(out / "inj")) == 4
+    s2 = build_dataset(m, out, workers=2, progress=False)
+    assert s2.failed == 0 and s2.skipped == 6
 
 
 def test_result_lost_with_the_pool_but_file_complete_counts_as_done(tmp_path):

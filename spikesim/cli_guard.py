@@ -1,0 +1,141 @@
+"""One error boundary for the command lines (``spikesim`` and ``spikejdd``).
+
+Library code raises; a command line turns every failure into one line on
+stderr and an exit code, never a traceback unless asked for with ``--debug``
+(or ``SPIKESIM_DEBUG=1``):
+
+==========================================  =====  ===========================================
+what happened                               exit   line
+==========================================  =====  ===========================================
+a spikesim error (bad value, file, format)  1      ``PROG COMMAND: error: MESSAGE``
+an operating-system error (disk, access)    1      the file, the reason and what to do
+not enough memory                           1      what to make smaller
+Ctrl-C                                      130    ``interrupted``
+SIGTERM                                     143    ``stopped by SIGTERM``
+the reader of stdout went away (``| head``)  141    nothing (as other Unix tools)
+any other exception (a bug)                 70     its type and message, and ``--debug``
+==========================================  =====  ===========================================
+
+SIGTERM is turned into an exception, so the files being written are removed
+on the way out exactly as on Ctrl-C.  ``SIGXFSZ`` (file-size limit) is
+ignored so that such a write fails with an error instead of killing the
+process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import errno
+import os
+import signal
+import sys
+from collections.abc import Callable
+
+from spikesim.errors import SpikeSimError
+
+__all__ = ["Terminated", "debug_requested", "install_signal_handlers", "run_guarded"]
+
+EXIT_ERROR = 1
+EXIT_BUG = 70
+EXIT_INTERRUPTED = 130
+EXIT_PIPE = 141
+EXIT_TERMINATED = 143
+
+
+class Terminated(BaseException):  # noqa: N818 - a signal, not an error
+    """Raised in the main thread when the process receives SIGTERM."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+def install_signal_handlers() -> None:
+    """SIGTERM raises :class:`Terminated`; SIGXFSZ is ignored (writes then fail cleanly)."""
+    with contextlib.suppress(ValueError, OSError, AttributeError):  # not the main thread
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    with contextlib.suppress(ValueError, OSError, AttributeError):
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+
+def debug_requested(argv: list[str] | None) -> bool:
+    """``--debug`` anywhere among the arguments, or ``SPIKESIM_DEBUG`` set to a true value."""
+    env = os.environ.get("SPIKESIM_DEBUG", "").strip().lower()
+    return env not in ("", "0", "false", "no") or "--debug" in (argv or [])
+
+
+def _os_message(exc: OSError) -> str:
+    where = f"{exc.filename!r}: " if getattr(exc, "filename", None) else ""
+    code = getattr(exc, "errno", None)
+    hint = {
+        errno.ENOSPC: "the disk is full: free space or write elsewhere",
+        errno.EFBIG: "file-size limit reached: raise `ulimit -f` or write less",
+        errno.EACCES: "permission denied: choose a path you can write",
+        errno.EROFS: "read-only file system: choose another path",
+        errno.ENOENT: "no such file or folder: check the path",
+        errno.EEXIST: "it exists: choose another name or remove it",
+        errno.ENOTDIR: "a part of the path is a file, not a folder",
+        errno.EISDIR: "it is a folder: give a file name",
+        errno.ECONNREFUSED: "connection refused: check the address and that the server runs",
+    }.get(code)
+    return where + (hint or exc.strerror or str(exc) or type(exc).__name__)
+
+
+def _quiet_stdout() -> None:
+    # stdout's reader is gone: point it at /dev/null so that the interpreter's
+    # final flush does not raise again (Python's documented recipe).
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+
+
+def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False) -> int:
+    """Run ``call()`` and map what it raises to one stderr line and an exit code.
+
+    ``label`` prefixes every line (``"spikesim simulate"``).  With ``debug``
+    nothing is caught, so Python prints the full traceback.
+    """
+    install_signal_handlers()
+    if debug:
+        return int(call() or 0)
+    try:
+        code = int(call() or 0)
+        with contextlib.suppress(BrokenPipeError):
+            sys.stdout.flush()
+        return code
+    except BrokenPipeError:
+        _quiet_stdout()
+        return EXIT_PIPE
+    except SpikeSimError as exc:
+        _say(label, f"error: {exc}")
+        return EXIT_ERROR
+    except argparse.ArgumentTypeError as exc:
+        _say(label, f"error: {exc}")
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        _say(label, "interrupted; files being written were removed")
+        return EXIT_INTERRUPTED
+    except Terminated:
+        _say(label, "stopped by SIGTERM; files being written were removed")
+        return EXIT_TERMINATED
+    except MemoryError:
+        _say(label, "error: not enough memory for this request: ask for fewer readouts or "
+                    "a smaller size")
+        return EXIT_ERROR
+    except OverflowError as exc:
+        _say(label, f"error: a number is too large ({exc}): ask for fewer readouts or a "
+                    "smaller size")
+        return EXIT_ERROR
+    except OSError as exc:
+        _say(label, f"error: {_os_message(exc)}")
+        return EXIT_ERROR
+    except Exception as exc:  # noqa: BLE001 - the boundary: a bug still gets one line
+        _say(label, f"internal error: {type(exc).__name__}: {exc} (run again with --debug "
+                    "for the traceback, and please report it)")
+        return EXIT_BUG
+
+
+def _say(label: str, text: str) -> None:
+    with contextlib.suppress(OSError, ValueError):
+        print(f"{label}: {text}", file=sys.stderr)

@@ -1,0 +1,67 @@
+"""Pool workers that die with their parent.
+
+A spawned worker runs :func:`init_worker` first.  It installs the command
+line's signal handling (SIGTERM raises, so a file being written is removed
+on the way out) and starts a daemon thread that polls the parent's process
+id.  When the parent is gone (``kill -9``, a crash) the thread forbids every
+further rename into place (:func:`spikesim.io._atomic.set_rename_guard`),
+interrupts the task with SIGTERM and, should that not end the process within
+:data:`GRACE_S` seconds (a long kernel call), exits outright.  Nothing is
+renamed into the output folder after the parent has died, and no worker
+outlives it by more than a few seconds.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+from spikesim.errors import SpikeSimFileError
+
+__all__ = ["GRACE_S", "POLL_S", "init_worker", "parent_alive"]
+
+#: Seconds between two checks of the parent.
+POLL_S = 0.2
+#: Seconds a worker whose parent died gets to clean up before it exits outright.
+GRACE_S = 3.0
+
+_parent_pid: int | None = None
+_orphaned = threading.Event()
+
+
+def parent_alive() -> bool:
+    """False once this worker's parent process has died (True outside a pool worker)."""
+    return _parent_pid is None or (not _orphaned.is_set() and os.getppid() == _parent_pid)
+
+
+def _refuse_rename(final) -> None:
+    if not parent_alive():
+        raise SpikeSimFileError(f"not renaming {str(final)!r} into place: the process that "
+                                "started this worker has died")
+
+
+def _watch() -> None:
+    while os.getppid() == _parent_pid:
+        time.sleep(POLL_S)
+    _orphaned.set()
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)  # interrupts the task; its temp file is removed
+    finally:
+        time.sleep(GRACE_S)
+        os._exit(1)
+
+
+def init_worker(parent_pid: int) -> None:
+    """Pool initializer: signal handling, parent watch and the rename guard."""
+    global _parent_pid
+    from spikesim.cli_guard import install_signal_handlers
+    from spikesim.io._atomic import set_rename_guard
+
+    _parent_pid = int(parent_pid)
+    install_signal_handlers()
+    set_rename_guard(_refuse_rename)
+    if os.getppid() != _parent_pid:  # died while this worker started
+        os._exit(1)
+    threading.Thread(target=_watch, name="spikesim-parent-watch", daemon=True).start()

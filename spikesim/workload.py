@@ -1,0 +1,88 @@
+"""Estimates that catch runaway work before it starts.
+
+A scene renders one *key frame* per ``key_interval_s`` of scene time (the
+simulator interpolates between them).  A very fast motion or a fine flicker
+tolerance makes that interval tiny, so a short stream can ask for hundreds of
+thousands of full-frame renders, minutes of work the user rarely expects.
+:func:`estimate_key_frames` counts them from the scene's interval without
+rendering anything; :class:`~spikesim.simulate.SimulationRun` warns with a
+:class:`RunawayWorkWarning` above :data:`KEY_FRAME_WARN`, and ``spikesim
+simulate`` stops there unless given ``--force``.  :func:`check_free_space`
+compares an output's size with the free space of its folder.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import warnings
+from pathlib import Path
+
+from spikesim.errors import SpikeSimFileError, SpikeSimValueError
+
+__all__ = ["KEY_FRAME_WARN", "RunawayWorkWarning", "check_free_space", "check_key_frames",
+           "estimate_key_frames", "require_reasonable_key_frames"]
+
+#: Key frames above which a simulation is flagged (about a minute of rendering at 256 x 256).
+KEY_FRAME_WARN = 20_000
+
+
+class RunawayWorkWarning(UserWarning):
+    """A request will do far more work than its size suggests."""
+
+
+def estimate_key_frames(scene, duration_s: float) -> int | None:
+    """Key frames a scene renders over ``duration_s`` seconds (None: unknown or static)."""
+    interval = getattr(scene, "key_interval_s", None)
+    try:
+        interval = float(interval)
+    except (TypeError, ValueError):
+        return None
+    if not (math.isfinite(interval) and interval > 0):
+        return None
+    count = float(duration_s) / interval + 2
+    return int(min(count, 2**62))
+
+
+def check_key_frames(scene, duration_s: float, limit: int | None = KEY_FRAME_WARN,
+                     force: bool = False) -> int | None:
+    """Warn when the scene needs more than ``limit`` key frames (``force``: never).
+
+    Returns the estimate (None when the scene does not say).
+    """
+    est = estimate_key_frames(scene, duration_s)
+    if est is not None and limit is not None and est > limit and not force:
+        warnings.warn(runaway_message(scene, est, limit), RunawayWorkWarning, stacklevel=3)
+    return est
+
+
+def runaway_message(scene, est: int, limit: int) -> str:
+    what = getattr(scene, "describe", lambda: {})()
+    name = what.get("name") or what.get("type") or type(scene).__name__
+    return (f"scene {name!r} needs about {est:,} key frames (one every "
+            f"{float(scene.key_interval_s):.3g} s of scene time; more than {limit:,}): "
+            "this can take very long; lower the motion speed or the number of readouts")
+
+
+def require_reasonable_key_frames(scene, duration_s: float, limit: int = KEY_FRAME_WARN) -> None:
+    """Raise :class:`SpikeSimValueError` above ``limit`` key frames (the CLI's check)."""
+    est = estimate_key_frames(scene, duration_s)
+    if est is not None and est > limit:
+        raise SpikeSimValueError(runaway_message(scene, est, limit) +
+                                 ", or pass --force to run anyway")
+
+
+def check_free_space(path: str | os.PathLike, nbytes: int) -> None:
+    """Raise :class:`SpikeSimFileError` when ``path``'s folder has less than ``nbytes`` free."""
+    folder = Path(path).parent if str(Path(path).parent) else Path(".")
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return  # the writer reports a missing folder with its own message
+    if nbytes > free:
+        raise SpikeSimFileError(
+            f"writing {str(path)!r} needs about {nbytes / 2**30:.3g} GiB but its folder has "
+            f"{free / 2**30:.3g} GiB free: free space, write elsewhere, ask for fewer readouts, "
+            "or pass --force (compression may make it fit)"
+        )
