@@ -239,11 +239,16 @@ def _centers(text: str | None, default: list[int]) -> list[int]:
     try:
         if ":" in text:
             parts = [int(v) if v else None for v in text.split(":")]
-            return list(range(*[p for p in parts if p is not None]))
-        return [int(v) for v in text.split(",") if v.strip()]
+            centers = list(range(*[p for p in parts if p is not None]))
+        else:
+            centers = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise argparse.ArgumentTypeError(f"--centers {text!r}: expected 19,59 or start:stop:step") \
             from None
+    if not centers:
+        raise bad_value("--centers", text, "at least one readout (start:stop:step with start < "
+                                            "stop, or a list such as 19,59)")
+    return centers
 
 
 def _reconstruct(args) -> int:
@@ -258,7 +263,10 @@ def _reconstruct(args) -> int:
 
     src = Path(args.input)
     out = Path(args.out)
-    names = _methods(args.method) or ["sjdd"]
+    names = list(dict.fromkeys(_methods(args.method) or ["sjdd"]))  # each method once
+    if args.weights and not any(m.lower() == "sjdd" for m in names):
+        raise bad_value("--weights", args.weights, "used with sjdd in --methods (it names "
+                                                    "SJDD-Net weights), or leave it out")
     if args.weights:  # --weights names the checkpoint of every sjdd in the list
         names = [f"{m}@{args.weights}" if m.lower() == "sjdd" else m for m in names]
     methods = [get_method(m) for m in names]

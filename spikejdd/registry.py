@@ -47,10 +47,10 @@ import numpy as np
 
 from spikejdd.pipelines import PIPELINE_GRAMMAR, parse_pipeline, standard_pipelines
 from spikesim.cfa import normalize_cfa
-from spikesim.errors import SpikeSimTypeError, SpikeSimValueError, bad_value
+from spikesim.errors import SpikeSimError, SpikeSimTypeError, SpikeSimValueError, bad_value
 from spikesim.estimate import window_bounds
 
-__all__ = ["Registry", "Method", "METHODS", "ENTRY_POINT_GROUP", "register_method",
+__all__ = ["Registry", "Method", "MethodError", "METHODS", "ENTRY_POINT_GROUP", "register_method",
            "unregister_method", "get_method", "list_methods", "reconstruct", "call_method"]
 
 #: Entry-point group through which installed packages add methods.
@@ -71,6 +71,10 @@ def _accepted(fn: Callable) -> tuple[set[str], bool]:
     names = {p.name for p in sig.parameters.values()
              if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
     return names, any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
+
+
+class MethodError(SpikeSimError, RuntimeError):
+    """A reconstruction method raised while it ran (its own failure, named)."""
 
 
 @dataclass(frozen=True)
@@ -95,7 +99,15 @@ class Method:
                 raise bad_value("options", unknown, f"options method {self.name!r} declares "
                                 f"{sorted(names - {'spikes', 'cfa', 'center'})}")
             kwargs = {k: v for k, v in kwargs.items() if k in names}
-        return self.fn(spikes, cfa, center, **kwargs)
+        try:
+            return self.fn(spikes, cfa, center, **kwargs)
+        except SpikeSimError as exc:  # a clear error already: say which method raised it
+            if not str(exc).startswith("method "):
+                exc.args = (f"method {self.name!r}: {exc}",)
+            raise
+        except Exception as exc:  # the method's own failure, not the harness's
+            raise MethodError(f"method {self.name!r} failed: {type(exc).__name__}: {exc} "
+                              "(--debug shows the traceback)") from exc
 
     def window_for(self, n_readouts: int) -> int | None:
         """Readouts the method uses on a stream of ``n_readouts`` (None: it does not say)."""

@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 from spikejdd.models.pretrained import DEFAULT_WEIGHTS, cached_model
+from spikejdd.runtime import check_device
 from spikesim.cfa import mask_planes, normalize_cfa
 from spikesim.errors import SpikeSimValueError, bad_value
 from spikesim.estimate import window_bounds
@@ -45,7 +46,9 @@ def model_inputs(spikes, cfa, center, window: int) -> tuple[torch.Tensor, torch.
     """
     pattern = normalize_cfa(cfa)
     if pattern is None:
-        raise bad_value("cfa", cfa, "a Bayer pattern (this learned method is a colour method)")
+        raise bad_value("cfa", "mono" if cfa is None else cfa,
+                        "a Bayer pattern: this learned method reconstructs colour from a Bayer "
+                        "stream and cannot run on a monochrome one")
     arr = np.asarray(spikes)
     if arr.shape[0] < window:
         raise bad_value("spikes", f"{arr.shape[0]} readouts",
@@ -59,6 +62,7 @@ def model_inputs(spikes, cfa, center, window: int) -> tuple[torch.Tensor, torch.
 
 def _run(module: torch.nn.Module, x: torch.Tensor, m: torch.Tensor, device: str,
          label: str) -> np.ndarray:
+    device = check_device(device)
     with torch.inference_mode():
         out = module(x.to(device), m.to(device))
     if isinstance(out, (tuple, list)):

@@ -101,7 +101,8 @@ def load_checkpoint(path) -> dict:
     try:
         blob = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:
-        raise CheckpointError(f"cannot read checkpoint {str(path)!r}: {exc}") from exc
+        raise CheckpointError(f"cannot read checkpoint {str(path)!r}: not a PyTorch checkpoint of "
+                              f"tensors, or damaged ({type(exc).__name__})") from exc
     if isinstance(blob, dict) and blob.get("format") == FORMAT:
         if int(blob.get("format_version", -1)) != FORMAT_VERSION:
             raise CheckpointError(f"{path}: format_version {blob.get('format_version')} is not "

@@ -110,13 +110,36 @@ def _gaussian_sigma(meta: dict) -> float | None:
     return None
 
 
+def _check_named_folder(noise: str, folders, seqs, flag: str) -> None:
+    """A folder name the SJDD-Net scripts read a noise level from must match the data:
+    an integer σ_g folder needs every sequence Gaussian at that σ_g, ``r`` needs
+    Gaussian sequences (σ_g goes in each file name), ``gp`` Poisson-Gaussian ones.
+    Any other name (``phy``, your own) is only a label and takes every sequence."""
+    for seq, (_, sigma) in zip(seqs, folders, strict=True):
+        if noise.isdigit() and (sigma is None or abs(sigma - int(noise)) > 1e-6):
+            have = "no Gaussian σ_g" if sigma is None else f"σ_g {sigma:g}"
+            raise _bad(flag, noise, f"sequences with Gaussian σ_g = {noise} DN ({seq.name} has "
+                                    f"{have}); name another folder, or 'r' for several levels")
+        if noise == "r" and sigma is None:
+            raise _bad(flag, noise, f"Gaussian sequences only ({seq.name} has no σ_g); "
+                                    "name another folder for it")
+        if noise == "gp":
+            sensor = seq.meta.get("sensor")
+            model = (sensor.get("noise") if isinstance(sensor, dict) else None) or {}
+            if model.get("type") != "paper" or float(model.get("sigma_p", 0.0)) == 0.0:
+                raise _bad(flag, noise, f"Poisson-Gaussian paper-mode sequences only "
+                                        f"({seq.name} is not); name another folder for it")
+
+
 def _folders(ds: Dataset, noise: str, flag: str) -> list[tuple[str, float | None]]:
     """(noise folder, σ_g or None) per sequence; a named folder wins over the metadata."""
     if noise != "auto":
         if not isinstance(noise, str) or not noise or "/" in noise or noise in (".", ".."):
             raise _bad(flag, noise, "'auto' or a folder name such as '0', '15', 'r', 'gp', "
                             "'phy'")
-        return [(noise, _gaussian_sigma(s.meta)) for s in ds]
+        folders = [(noise, _gaussian_sigma(s.meta)) for s in ds]
+        _check_named_folder(noise, folders, [s for s in ds], flag)
+        return folders
     labels = []
     for s in ds:
         try:
@@ -205,9 +228,6 @@ def export_sjdd(
             if n - half < 0 or n + half >= seq.n_readouts:
                 skipped.append(f"{seq.name}@{n}")
                 continue
-            if folder == "r" and sigma is None:
-                raise _bad(names["noise"], "r",
-                                f"Gaussian sequences only ({seq.name} has no σ_g)")
             stem = f"{seq.name}_{n:06d}"
             dat_name = stem + (f"-{sigma:g}" if folder == "r" else "") + ".dat"
             with DatWriter(spk_dir / dat_name, seq.height, seq.width, flip=flip) as w:

@@ -80,7 +80,9 @@ def test_noise_labels_and_refusals(tmp_path, make_stream):
         sjdd_noise_label({"sensor": {"noise": {"type": "physical"}}})
     gp = _dataset(tmp_path / "a", make_stream, [_paper(3, 1.0)], gt=(40,))
     assert export_sjdd(gp, tmp_path / "gp")["noise_folder"] == "gp"
-    assert export_sjdd(gp, tmp_path / "named", noise="5")["noise_folder"] == "5"
+    assert export_sjdd(gp, tmp_path / "named", noise="mine")["noise_folder"] == "mine"
+    with pytest.raises(SpikeSimValueError, match="σ_g = 5"):  # a level folder must be true
+        export_sjdd(gp, tmp_path / "five", noise="5")
     mono = _dataset(tmp_path / "b", make_stream, [None], cfa=None)
     with pytest.raises(SpikeSimFormatError, match="Bayer"):
         export_sjdd(mono, tmp_path / "m")
@@ -143,3 +145,18 @@ def test_cli_names_the_flag(tmp_path, make_stream, capsys):
     assert main(["convert", str(src), str(tmp_path / "o"), "--sjdd", "--noise", "phy",
                  "--quiet"]) == 0
     assert "noise phy, eval_set spikesim" in capsys.readouterr().out
+
+
+def test_a_level_folder_must_match_the_data_and_nothing_is_written_on_refusal(tmp_path,
+                                                                               make_stream):
+    src = _dataset(tmp_path, make_stream, [_paper(5.0), _paper(13.6), _paper(3.0, 1.0)],
+                   gt=(40,))
+    for folder, match in (("5", r"σ_g = 5 DN .*σ_g 13.6"), ("r", "Gaussian sequences only"),
+                          ("gp", "Poisson-Gaussian paper-mode sequences only")):
+        out = tmp_path / f"out-{folder}"
+        with pytest.raises(SpikeSimValueError, match=match):
+            export_sjdd(src, out, noise=folder)
+        assert not out.exists() or not any(out.rglob("*.dat"))
+    only5 = _dataset(tmp_path / "five", make_stream, [_paper(5.0), _paper(5.0)], gt=(40,))
+    assert export_sjdd(only5, tmp_path / "ok5", noise="5")["samples"] == 2
+    assert export_sjdd(src, tmp_path / "label", noise="mine")["samples"] == 3  # a plain label

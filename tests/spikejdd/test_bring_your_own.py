@@ -269,3 +269,48 @@ def test_demo_checks_the_device_before_any_work(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert "cuda:7" in err and len(err.splitlines()) == 1
     assert not (out / "demo").exists()
+
+
+FAILING_MODULE = '''
+import numpy as np
+
+def boom(spikes, cfa, center):
+    raise RuntimeError("boom inside my method")
+
+def needs_gain(spikes, cfa, center, gain):
+    return np.zeros(spikes.shape[1:] + (3,))
+'''
+
+
+def test_a_failing_user_method_is_named_not_reported_as_a_bug(data39, tmp_path, capsys,
+                                                              monkeypatch):
+    (tmp_path / "failing_meth.py").write_text(FAILING_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    args = ["evaluate", "--data", str(data39), "--out", str(tmp_path / "x"), "--quiet"]
+    for fn, words in (("boom", "boom inside my method"), ("needs_gain", "gain")):
+        assert main(args + ["--methods", f"tfp+bilinear,failing_meth:{fn}"]) == 1  # not 70
+        err = capsys.readouterr().err.strip()
+        assert f"method 'failing_meth:{fn}' failed" in err and words in err, err
+        assert len(err.splitlines()) == 1
+    sys.modules.pop("failing_meth", None)
+
+
+def test_reconstruct_refuses_what_it_would_ignore_or_cannot_do(data39, tmp_path, capsys):
+    seq = str(data39 / "fan.h5")
+    out = str(tmp_path / "frames")
+    assert main(["reconstruct", seq, "--methods", "tfp+bilinear", "--weights", "w.pt",
+                 "--out", out, "--quiet"]) == 1
+    assert "--weights" in capsys.readouterr().err
+    assert main(["reconstruct", seq, "--methods", "tfp+bilinear", "--centers", "10:5",
+                 "--out", out, "--quiet"]) == 1
+    assert "--centers" in capsys.readouterr().err
+    assert main(["reconstruct", seq, "--cfa", "mono", "--methods", "sjdd", "--centers", "19",
+                 "--out", out, "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "'sjdd'" in err and "monochrome" in err and "None" not in err
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"not a checkpoint")
+    assert main(["reconstruct", seq, "--methods", "sjdd", "--weights", str(bad), "--centers",
+                 "19", "--out", out, "--quiet"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "bad.pt" in err and len(err.splitlines()) == 1 and "weights_only" not in err
