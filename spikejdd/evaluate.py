@@ -311,8 +311,15 @@ def _md_table(summary: dict, methods: list[str]) -> list[str]:
     return lines
 
 
+def _natural(label: str) -> list:
+    """Sort key that orders numbers inside labels by value (GN5 before GN10)."""
+    import re
+
+    return [(0, int(t), "") if t.isdigit() else (1, 0, t) for t in re.split(r"(\d+)", str(label))]
+
+
 def _group_table(table: dict, methods: list[str], title: str) -> list[str]:
-    cols = sorted({k for m in methods for k in table.get(m, {})})
+    cols = sorted({k for m in methods for k in table.get(m, {})}, key=_natural)
     lines = ["", f"## {title}: PSNR[linear] dB / SSIM-gauss11[linear] (frames)", "",
              "| method | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for m in methods:
@@ -458,8 +465,10 @@ def _scatter(result: dict, methods: list[str], path: Path) -> None:
         ax.errorbar(x, y, xerr=[[x - ms.min()], [ms.max() - x]],
                     yerr=[[y - ps.min()], [ps.max() - y]], fmt="o", color=color, capsize=3,
                     label=m, markersize=7)
-        for e2 in (result.get("by_noise") or {}).get(m, {}).values():
+        for label, e2 in (result.get("by_noise") or {}).get(m, {}).items():
             ax.scatter(e2["ms_per_frame"], e2["PSNR[linear]"], s=12, color=color, alpha=0.5)
+            ax.annotate(str(label), (e2["ms_per_frame"], e2["PSNR[linear]"]), fontsize=6,
+                        color=color, xytext=(3, 2), textcoords="offset points")
     ax.set_xscale("log")
     ax.set_xlabel("time per frame (ms, log scale; median of repeats, warm-up excluded)")
     ax.set_ylabel("PSNR, linear light (dB)")

@@ -54,3 +54,10 @@ def test_cli_writes_json_md_png(data_dir, tmp_path, capsys):
                  str(out), "--quiet"]) == 1
     assert "bogus" in capsys.readouterr().err
     assert main(["methods"]) == 0
+
+
+def test_group_columns_sort_numbers_by_value():
+    from spikejdd.evaluate import _natural
+
+    assert sorted(["GN0", "GN10", "GN15", "GN5", "GPN-rand"], key=_natural) == [
+        "GN0", "GN5", "GN10", "GN15", "GPN-rand"]
