@@ -25,12 +25,13 @@ STAMP_NAME = "spikesim-sources.sha256"
 _CACHE_SUFFIXES = (".nbi", ".nbc")
 
 
-_COMPILER_IMPORT = re.compile(rb"^\s*(?:import|from)\s+(?:numba|llvmlite)\b", re.MULTILINE)
+_COMPILER_IMPORT = re.compile(rb"^(?:import|from)[ \t]+(?:numba|llvmlite)\b", re.MULTILINE)
 
 
 def compiled_sources(package_dir: Path) -> list[Path]:
     """The files compiled code can come from: every ``.py`` module importing
-    numba or llvmlite, and every ``.npy`` table, sorted."""
+    numba or llvmlite at its top level (a function-level import, e.g. to set the
+    thread count, compiles nothing), and every ``.npy`` table, sorted."""
     modules = [p for p in package_dir.rglob("*.py") if _COMPILER_IMPORT.search(p.read_bytes())]
     return sorted(modules + list(package_dir.rglob("*.npy")))
 
