@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "presets",
     "scenes",
     "dataset",
+    "manifests",
     "info",
     "convert",
     "preview",

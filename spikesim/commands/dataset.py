@@ -19,6 +19,9 @@ def register(sub) -> None:
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan with disk and time estimates, write nothing")
     p.add_argument("--list", action="store_true", help="list the built-in manifests")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="value of ${NAME} in the manifest (e.g. REDS=/data/REDS); "
+                        "default: the environment variable NAME")
     p.set_defaults(func=run)
 
 
@@ -32,7 +35,13 @@ def run(args) -> int:
         return 0
     if not args.manifest:
         raise SpikeSimValueError("MANIFEST is required (a .toml file or builtin:NAME)")
-    manifest = load_manifest(args.manifest)
+    variables = {}
+    for item in args.set:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise SpikeSimValueError(f"--set {item!r}: expected NAME=VALUE")
+        variables[name.strip()] = value
+    manifest = load_manifest(args.manifest, variables)
     if args.dry_run:
         est = estimate_dataset(manifest, workers=args.dask_local or args.workers, limit=args.limit)
         print(json.dumps(est, indent=2))

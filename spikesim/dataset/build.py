@@ -31,7 +31,7 @@ from spikesim.errors import bad_value
 
 __all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
 
-_STAGES = ("scene", "flow", "kernel", "write", "total")
+_STAGES = ("scene", "flow", "warp", "kernel", "write", "total")
 
 
 @dataclass
@@ -52,7 +52,7 @@ class BuildSummary:
         return [r for r in self.records if r["status"] == "failed"]
 
     def seconds_by_stage(self) -> dict:
-        return {s: sum(r["seconds"][s] for r in self.records if r["status"] == "done")
+        return {s: sum(r["seconds"].get(s, 0.0) for r in self.records if r["status"] == "done")
                 for s in _STAGES}
 
     def to_dict(self) -> dict:
