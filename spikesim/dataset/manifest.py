@@ -221,7 +221,8 @@ def _parse_source(i: int, t: dict, base: Path, clip_s: float = 0.0,
     noise = _str_list(f"{path}.noise", t["noise"]) if "noise" in t else ()
     for label in noise:
         if label not in labels:
-            raise bad_value(f"{path}.noise", label, f"a [[noise]] label among {sorted(set(labels))}")
+            raise bad_value(f"{path}.noise", label,
+                            f"a [[noise]] label among {sorted(set(labels))}")
     split = t.get("split", "train")
     if not isinstance(split, str) or not split or not set(split) <= _SPLIT_CHARS:
         raise bad_value(f"{path}.split", split, "a lower-case name like 'train' or 'eval'")
@@ -326,7 +327,8 @@ def _video_info(kind: str, root: Path, seq: str, fps, path: str) -> VideoInfo:
 def _parse_clips(path: str, t: dict, videos: tuple, clip_s: float) -> ClipSpec:
     """Clip keys of a video source, checked against every video of it."""
     if "count" in t and "per_second" in t:
-        raise bad_value(f"{path}.per_second", t["per_second"], "no 'count' beside it (one of the two)")
+        raise bad_value(f"{path}.per_second", t["per_second"],
+                        "no 'count' beside it (one of the two)")
     count = _int(f"{path}.count", t["count"], 1, 10**6) if "count" in t else None
     per_second = None
     if "per_second" in t:

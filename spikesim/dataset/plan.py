@@ -75,7 +75,8 @@ def _scene_specs(src: SourceSpec, manifest: Manifest):
             # animated scenes have their motion built in: the motions apply to pictures
             motion = motions[(k // len(src.scenes)) % len(motions)] if scene in IMAGES else None
             name = f"{scene}-{motion}-{k:04d}" if motion else f"{scene}-{k:04d}"
-            yield name, {"kind": "procedural", "name": scene, "motion": motion, "size": [h, w]}, None
+            spec = {"kind": "procedural", "name": scene, "motion": motion, "size": [h, w]}
+            yield name, spec, None
     elif src.kind == "python":
         for k in range(src.count):
             yield f"{_slug(src.factory.split(':')[1])}-{k:04d}", {
@@ -110,7 +111,7 @@ def _draw_clip(src: SourceSpec, spec: dict, clip: tuple, clip_s: float,
     else:
         start = float(rng.uniform(0.0, latest))
     spec["start_s"] = round(min(max(start, 0.0), latest), 9)
-    spec["clip"] = [k, n]
+    spec["clip"] = k  # not n: a clip stays the same when more are asked for (without min_gap_s)
     if c.crop_size is not None:
         ch, cw = c.crop_size
         if c.crop_position == "random":
