@@ -43,11 +43,13 @@ def run(args) -> int:
         variables[name.strip()] = value
     manifest = load_manifest(args.manifest, variables)
     if args.dry_run:
-        est = estimate_dataset(manifest, workers=args.dask_local or args.workers, limit=args.limit)
+        est = estimate_dataset(manifest, workers=args.workers, limit=args.limit,
+                               dask_local=args.dask_local, out_dir=args.out)
         print(json.dumps(est, indent=2))
-        print(f"plan: {est['sequences']} sequences ({est['by_split']}), "
-              f"{est['px_readouts']:.3g} pixel-readouts, about "
-              f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s")
+        print(f"plan: {est['sequences']} sequences ({est['by_split']}), {est['to_make']} to "
+              f"make, {est['px_readouts']:.3g} pixel-readouts, about "
+              f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s "
+              f"({est['executor']}, {est['startup_seconds']:.1f} s of it start-up)")
         return 0
     if not args.out:
         raise SpikeSimValueError("--out is required (the output folder)")

@@ -165,8 +165,29 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     for split in splits:
         if (out / split).is_dir():
             build_index(out / split)
-    _write_json(out / "build_summary.json", summary.to_dict())
+    _write_summary(out / "build_summary.json", summary)
     return summary
+
+
+def _write_summary(path: Path, summary: BuildSummary) -> None:
+    """Write ``build_summary.json`` with a ``history`` of every run; a run that made
+    and failed nothing (all skipped) keeps the summary, and timing, of the last real one."""
+    previous = None
+    if path.is_file():
+        try:
+            previous = json.loads(path.read_text())
+        except (OSError, ValueError):
+            previous = None
+    history = list((previous or {}).get("history", []))
+    history.append({"finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "executor": summary.executor,
+                    "done": summary.done, "skipped": summary.skipped, "failed": summary.failed,
+                    "seconds": summary.seconds})
+    if previous is not None and summary.done == 0 and summary.failed == 0:
+        data = previous
+    else:
+        data = summary.to_dict()
+    data["history"] = history
+    _write_json(path, data)
 
 
 def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
@@ -257,41 +278,107 @@ def _write_json(path: Path, data) -> None:
         Path(tmp).write_text(json.dumps(data, indent=1))
 
 
+def _warm_up() -> float:
+    """Import the simulator and load its compiled kernels (what a fresh worker pays)."""
+    import numpy as np
+
+    import spikesim as ss
+
+    t0 = time.perf_counter()
+    sensor = ss.Sensor.preset("ideal", height=8, width=8,
+                              noise=ss.noise.PaperNoise(sigma_g=1.0, sigma_p=1.0))
+    ss.simulate(ss.scenes.Static(np.full((8, 8, 3), 0.5, np.float32)), sensor, 4, seed=0)
+    return time.perf_counter() - t0
+
+
+def _startup_seconds(workers: int, dask_local: int | None) -> float:
+    """Seconds from asking for workers to the first one ready with its kernels loaded."""
+    t0 = time.perf_counter()
+    if dask_local is not None:
+        from dask.distributed import Client, LocalCluster
+
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                          dashboard_address=None) as cluster, Client(cluster) as client:
+            client.submit(_warm_up, pure=False).result()
+    else:
+        with ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn")) as pool:
+            pool.submit(_warm_up).result()
+    elapsed = time.perf_counter() - t0
+    # workers start together: on fewer cores than workers their start-ups queue
+    return elapsed * max(1.0, (dask_local or workers) / (os.cpu_count() or 1))
+
+
 def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: int = 3,
-                     limit: int | None = None) -> dict:
+                     limit: int | None = None, dask_local: int | None = None,
+                     out_dir: str | os.PathLike | None = None) -> dict:
     """The plan of a build with disk and time estimates from a short calibration run.
 
     Up to ``calibration_tasks`` sequences spread over the plan are generated
-    into a temporary folder; their bytes and seconds per pixel-readout are
-    extrapolated to the whole plan (time divided by ``workers``).
+    into a temporary folder after one untimed warm-up run, with as many numba
+    threads as each worker of the real build gets.  Their bytes and seconds are
+    extrapolated to the sequences still to make (those already valid in
+    ``out_dir`` are skipped, as a build would): time = start-up + rounds of
+    ``workers`` sequences in parallel, where start-up is measured (a spawned
+    worker process, or a Dask worker, importing spikesim and loading its
+    kernels; for a serial build, the warm-up in this process).
     """
+    import numba
+
+    workers = _check_workers(workers)
+    parallel = dask_local if dask_local is not None else workers
     tasks = [t.to_dict() for t in plan_tasks(manifest)]
     if limit is not None:
         tasks = tasks[:limit]
+    all_tasks = tasks
+    if out_dir is not None and Path(out_dir).is_dir():
+        tasks = [t for t in tasks if not validate_existing(Path(out_dir) / t["file"], t)]
     px = int(manifest.size[0] * manifest.size[1])
     total_px = px * sum(t["n_readouts"] for t in tasks)
     picks = sorted({round(i * (len(tasks) - 1) / max(calibration_tasks - 1, 1))
                     for i in range(min(calibration_tasks, len(tasks)))})
-    bytes_per_px = seconds_per_px = 0.0
-    with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
-        recs = [run_task(tasks[i], tmp) for i in picks]
+    bytes_per_px = seconds_per_task = 0.0
+    recs, warm_s, startup_s = [], 0.0, 0.0
+    if picks:
+        threads = numba.get_num_threads()
+        if parallel > 1:
+            numba.set_num_threads(max(1, min((os.cpu_count() or 1) // parallel,
+                                             numba.config.NUMBA_NUM_THREADS)))
+        try:
+            with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
+                t0 = time.perf_counter()
+                run_task(tasks[picks[0]], tmp + "/warm")  # loads kernels, fills OS caches
+                warm_s = time.perf_counter() - t0
+                recs = [run_task(tasks[i], tmp) for i in picks]
+        finally:
+            numba.set_num_threads(threads)
         ok = [r for r in recs if r["status"] == "done"]
         if ok:
             cal_px = sum(r["px_readouts"] for r in ok)
             bytes_per_px = sum(r["bytes"] for r in ok) / cal_px
-            seconds_per_px = sum(r["seconds"]["total"] for r in ok) / cal_px
+            seconds_per_task = sum(r["seconds"]["total"] for r in ok) / len(ok)
+        if parallel > 1 and len(tasks) > 1:
+            startup_s = _startup_seconds(workers, dask_local)
+        else:  # this process pays the kernel loading once, like the build's
+            startup_s = max(warm_s - seconds_per_task, 0.0)
+    lanes = min(parallel, len(tasks)) if len(tasks) > 1 else 1
+    rounds = math.ceil(len(tasks) / max(lanes, 1))
     by_split: dict[str, int] = {}
-    for t in tasks:
+    for t in all_tasks:
         by_split[t["split"]] = by_split.get(t["split"], 0) + 1
     return {
         "manifest": manifest.origin or manifest.name,
-        "sequences": len(tasks),
+        "sequences": len(all_tasks),
+        "to_make": len(tasks),
         "by_split": by_split,
         "readouts_per_sequence": manifest.n_readouts,
         "size": list(manifest.size),
         "px_readouts": total_px,
         "estimated_bytes": int(math.ceil(bytes_per_px * total_px)),
-        "estimated_seconds": seconds_per_px * total_px / max(workers, 1),
+        "estimated_seconds": startup_s + rounds * seconds_per_task if tasks else 0.0,
+        "seconds_per_sequence": seconds_per_task,
+        "startup_seconds": startup_s,
+        "executor": (f"dask LocalCluster ({dask_local} workers)" if dask_local is not None
+                     else f"{workers} local processes" if workers > 1 else "serial"),
         "calibrated_on": [tasks[i]["file"] for i in picks],
         "calibration_failures": [r["error"] for r in recs if r["status"] != "done"],
     }

@@ -34,6 +34,7 @@ def reds(tmp_path_factory):
     return reds_root(tmp_path_factory.mktemp("reds"))
 
 
+@pytest.mark.slow  # about 25 s alone (three builds, two of them starting workers), 65 s loaded
 def test_acceptance_six_clips_of_one_video_identical_on_every_executor(reds, tmp_path):
     m = parse_manifest(clip_manifest(reds, count=6,
                                      crop={"size": [256, 256], "position": "random"}))
