@@ -12,6 +12,7 @@ from dataset_helpers import assert_same_files
 
 from spikesim.dataset import (
     build_dataset,
+    builtin_manifest_path,
     builtin_manifests,
     derive_seed,
     estimate_dataset,
@@ -44,6 +45,8 @@ def test_builtin_manifests_validate_and_plan():
     names = builtin_manifests()
     assert {"demo", "sjdd-train-small", "sjdd-eval-object", "sjdd-eval-camera"} <= set(names)
     for name in names:
+        if "${" in builtin_manifest_path(name).read_text():
+            continue  # needs dataset roots: test_sjdd_paper.py makes them
         m = load_manifest(f"builtin:{name}")
         tasks = plan_tasks(m)
         assert tasks and len({t.file for t in tasks}) == len(tasks)
