@@ -167,15 +167,15 @@ def _train(args) -> int:
     if not cfg.get("data"):
         print("spikejdd train: give --data DIR (or a --config with 'data')", file=sys.stderr)
         return 2
+    if args.synthesize:
+        data = Path(cfg["data"])
+        if not (data.is_dir() and any(data.glob("*.h5"))):
+            synthesize(data, n_sequences=args.synthesize, progress=not args.quiet)
     from spikesim.io import resolve_dataset
 
     for key, split in (("data", args.split), ("eval_data", args.eval_split)):
         if cfg.get(key) and (split or Path(cfg[key]).exists()):  # a dataset root -> its split
             cfg[key] = str(resolve_dataset(cfg[key], split))
-    if args.synthesize:
-        data = Path(cfg["data"])
-        if not (data.is_dir() and any(data.glob("*.h5"))):
-            synthesize(data, n_sequences=args.synthesize, progress=not args.quiet)
     summary = train(TrainConfig.from_dict(cfg))
     if os.environ.get("RANK", "0") != "0":
         return 0

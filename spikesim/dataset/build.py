@@ -291,21 +291,45 @@ def _warm_up() -> float:
     return time.perf_counter() - t0
 
 
-def _startup_seconds(workers: int, dask_local: int | None) -> float:
-    """Seconds from asking for workers to the first one ready with its kernels loaded."""
-    t0 = time.perf_counter()
-    if dask_local is not None:
-        from dask.distributed import Client, LocalCluster
+def _parallel_calibration(tasks: list[dict], workers: int, dask_local: int | None) -> tuple:
+    """Run ``tasks`` on the executor a build would start; returns (start-up seconds,
+    seconds of work per task in parallel, results).
 
-        with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
-            client.submit(_warm_up, pure=False).result()
-    else:
-        with ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn")) as pool:
-            pool.submit(_warm_up).result()
-    elapsed = time.perf_counter() - t0
-    # workers start together: on fewer cores than workers their start-ups queue
-    return elapsed * max(1.0, (dask_local or workers) / (os.cpu_count() or 1))
+    Start-up is the time from asking for the workers until each has imported
+    spikesim and loaded its kernels; the work is then timed with all workers
+    busy at once, so contention for cores, memory and disk is in the figure.
+    """
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
+        t0 = time.perf_counter()
+        if dask_local is not None:
+            from dask.distributed import Client, LocalCluster
+
+            cluster = LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True,
+                                   dashboard_address=None)
+            client = Client(cluster)
+            submit = lambda fn, *a: client.submit(fn, *a, pure=False)  # noqa: E731
+            threads = 1
+
+            def close():
+                client.close()
+                cluster.close()
+        else:
+            pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+            submit = pool.submit
+
+            def close():
+                pool.shutdown()
+        try:
+            for f in [submit(_warm_up) for _ in range(workers)]:
+                f.result()
+            startup = time.perf_counter() - t0
+            t1 = time.perf_counter()
+            recs = [f.result() for f in [submit(run_task, t, tmp, threads) for t in tasks]]
+            per_task = (time.perf_counter() - t1) / len(tasks)
+        finally:
+            close()
+    return startup, per_task, recs
 
 
 def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: int = 3,
@@ -313,16 +337,16 @@ def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: in
                      out_dir: str | os.PathLike | None = None) -> dict:
     """The plan of a build with disk and time estimates from a short calibration run.
 
-    Up to ``calibration_tasks`` sequences spread over the plan are generated
-    into a temporary folder after one untimed warm-up run, with as many numba
-    threads as each worker of the real build gets.  Their bytes and seconds are
-    extrapolated to the sequences still to make (those already valid in
-    ``out_dir`` are skipped, as a build would): time = start-up + rounds of
-    ``workers`` sequences in parallel, where start-up is measured (a spawned
-    worker process, or a Dask worker, importing spikesim and loading its
-    kernels; for a serial build, the warm-up in this process).
+    Sequences spread over the plan are generated into a temporary folder the
+    way the build will make them: serially in this process after one untimed
+    warm-up (up to ``calibration_tasks``), or on the same executor the build
+    starts (``workers`` spawned processes or a local Dask cluster, at least two
+    sequences per worker), whose start-up (each worker importing spikesim and
+    loading its kernels) is timed too.  Bytes and seconds are extrapolated to
+    the sequences still to make (those already valid in ``out_dir`` are
+    skipped, as a build would): time = start-up + rounds of ``workers``
+    sequences in parallel.
     """
-    import numba
 
     workers = _check_workers(workers)
     parallel = dask_local if dask_local is not None else workers
@@ -337,30 +361,29 @@ def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: in
     picks = sorted({round(i * (len(tasks) - 1) / max(calibration_tasks - 1, 1))
                     for i in range(min(calibration_tasks, len(tasks)))})
     bytes_per_px = seconds_per_task = 0.0
-    recs, warm_s, startup_s = [], 0.0, 0.0
-    if picks:
-        threads = numba.get_num_threads()
-        if parallel > 1:
-            numba.set_num_threads(max(1, min((os.cpu_count() or 1) // parallel,
-                                             numba.config.NUMBA_NUM_THREADS)))
-        try:
-            with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
-                t0 = time.perf_counter()
-                run_task(tasks[picks[0]], tmp + "/warm")  # loads kernels, fills OS caches
-                warm_s = time.perf_counter() - t0
-                recs = [run_task(tasks[i], tmp) for i in picks]
-        finally:
-            numba.set_num_threads(threads)
-        ok = [r for r in recs if r["status"] == "done"]
-        if ok:
-            cal_px = sum(r["px_readouts"] for r in ok)
-            bytes_per_px = sum(r["bytes"] for r in ok) / cal_px
-            seconds_per_task = sum(r["seconds"]["total"] for r in ok) / len(ok)
-        if parallel > 1 and len(tasks) > 1:
-            startup_s = _startup_seconds(workers, dask_local)
-        else:  # this process pays the kernel loading once, like the build's
-            startup_s = max(warm_s - seconds_per_task, 0.0)
+    recs, startup_s = [], 0.0
     lanes = min(parallel, len(tasks)) if len(tasks) > 1 else 1
+    if picks and lanes > 1:
+        # as many calibration tasks as keep every worker busy twice
+        n_cal = min(len(tasks), max(calibration_tasks, 2 * lanes))
+        cal = [tasks[round(i * (len(tasks) - 1) / max(n_cal - 1, 1))] for i in range(n_cal)]
+        picks = [tasks.index(t) for t in cal]
+        startup_s, per_task, recs = _parallel_calibration(cal, lanes, dask_local)
+        seconds_per_task = per_task * lanes  # one lane's time per task
+    elif picks:
+        with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
+            t0 = time.perf_counter()
+            run_task(tasks[picks[0]], tmp + "/warm")  # loads kernels, fills OS caches
+            warm_s = time.perf_counter() - t0
+            recs = [run_task(tasks[i], tmp) for i in picks]
+    ok = [r for r in recs if r["status"] == "done"]
+    if ok:
+        cal_px = sum(r["px_readouts"] for r in ok)
+        bytes_per_px = sum(r["bytes"] for r in ok) / cal_px
+        if lanes == 1:
+            seconds_per_task = sum(r["seconds"]["total"] for r in ok) / len(ok)
+            # this process pays the kernel loading once, like the build's
+            startup_s = max(warm_s - seconds_per_task, 0.0)
     rounds = math.ceil(len(tasks) / max(lanes, 1))
     by_split: dict[str, int] = {}
     for t in all_tasks:

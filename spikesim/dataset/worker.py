@@ -113,8 +113,8 @@ def validate_existing(path: Path, task: dict) -> bool:
 def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
     """Simulate and write one sequence; returns a result record (never raises).
 
-    ``threads`` limits numba's threads in this process (one worker per core
-    should not oversubscribe the machine).
+    ``threads`` limits numba's and OpenCV's threads in this process (one worker
+    per core should not oversubscribe the machine).
     """
     import numba
 
@@ -123,7 +123,10 @@ def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
     from spikesim.simulate import simulate_chunks
 
     if threads:
+        import cv2
+
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+        cv2.setNumThreads(max(1, int(threads)))  # decoding, flow and warping: no oversubscription
     path = Path(out_dir) / task["file"]
     t_start = time.perf_counter()
     record = {"id": task["id"], "file": task["file"], "split": task["split"], "status": "done",
