@@ -41,7 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "line; or set SPIKESIM_DEBUG=1)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     ev = sub.add_parser("evaluate", help="score methods (PSNR/SSIM) and time them")
-    ev.add_argument("--data", help="spikesim HDF5 file or folder")
+    ev.add_argument("--data", help="spikesim HDF5 file, folder or dataset root")
+    ev.add_argument("--split", help="split folder of a dataset root (e.g. eval)")
     ev.add_argument("--sweep", action="store_true",
                     help="Table-1-shaped sweep on sets simulated on the fly")
     ev.add_argument("--methods", default=None,
@@ -85,6 +86,8 @@ def _train_parser(sub) -> None:
     tr.add_argument("--config", help="JSON file of TrainConfig keys (flags given override it)")
     tr.add_argument("--out", help="run folder (default runs/sjdd)")
     tr.add_argument("--eval-data", help="evaluation HDF5 file or folder (default: --data)")
+    tr.add_argument("--split", help="split folder of a --data dataset root (e.g. train)")
+    tr.add_argument("--eval-split", help="split folder of an --eval-data dataset root")
     tr.add_argument("--model", help="preset: default (published widths), lite, published")
     tr.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                     help="override a model field, e.g. --set stages=2 (JSON values)")
@@ -107,7 +110,8 @@ def _train_parser(sub) -> None:
 
 def _reconstruct_parser(sub) -> None:
     rc = sub.add_parser("reconstruct", help="reconstruct frames of an HDF5 or .dat stream")
-    rc.add_argument("input", help="spikesim .h5 file or PKU .dat capture")
+    rc.add_argument("input", help="spikesim .h5 file, dataset folder or root, or .dat capture")
+    rc.add_argument("--split", help="split folder of a dataset root")
     rc.add_argument("--method", "--methods", dest="method", default="sjdd",
                     help="comma-separated methods (default sjdd); several give side-by-side "
                          "panels")
@@ -148,7 +152,10 @@ def _evaluate(args) -> int:
                                 seed=args.seed, progress=not args.quiet, outputs=outputs,
                                 device=device, frames_out=frames)
     else:
-        frames = evaluate.frames_from_dataset(args.data, args.context, args.per_sequence)
+        from spikesim.io import resolve_dataset
+
+        data = resolve_dataset(args.data, args.split)
+        frames = evaluate.frames_from_dataset(data, args.context, args.per_sequence)
         result = evaluate.run(frames, methods, repeats=args.repeats, progress=not args.quiet,
                               outputs=outputs, device=device)
     command = "spikejdd " + " ".join(shlex.quote(a) for a in args.argv)
@@ -225,6 +232,11 @@ def _train(args) -> int:
         data = Path(cfg["data"])
         if not (data.is_dir() and any(data.glob("*.h5"))):
             synthesize(data, n_sequences=args.synthesize, progress=not args.quiet)
+    from spikesim.io import resolve_dataset
+
+    for key, split in (("data", args.split), ("eval_data", args.eval_split)):
+        if cfg.get(key) and (split or Path(cfg[key]).exists()):  # a dataset root -> its split
+            cfg[key] = str(resolve_dataset(cfg[key], split))
     summary = train(TrainConfig.from_dict(cfg))
     if os.environ.get("RANK", "0") != "0":
         return 0
@@ -260,6 +272,7 @@ def _reconstruct(args) -> int:
     from spikejdd.evaluate import panel_image
     from spikejdd.registry import call_method, get_method
     from spikesim.estimate import window_bounds
+    from spikesim.io import resolve_dataset
 
     src = Path(args.input)
     out = Path(args.out)
@@ -282,10 +295,18 @@ def _reconstruct(args) -> int:
 
         def window(c, length):
             return cap.window(c, length)[0]
+    elif Path(src).is_dir():  # a dataset folder or root: every sequence of it
+        from spikesim.io import open_dataset
+
+        with open_dataset(src, args.split) as ds:
+            files = [seq.path for seq in ds]
+        for file in files:
+            _reconstruct(argparse.Namespace(**{**vars(args), "input": str(file), "split": None}))
+        return 0
     else:
         from spikesim.io import open_h5
 
-        seq = open_h5(src)
+        seq = open_h5(resolve_dataset(src, args.split))
         n = seq.n_readouts
         cfa = args.cfa or seq.cfa
         rate = args.rate or float((seq.meta.get("sensor") or {}).get("full_scale_rate", 0.6))

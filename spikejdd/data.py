@@ -148,7 +148,8 @@ class SpikeWindowDataset(Dataset):
     Parameters
     ----------
     source : path or dataset object
-        A spikesim HDF5 file or folder (opened with ``spikesim.io.open_dataset``),
+        A spikesim HDF5 file, split folder or dataset root (opened with
+        ``spikesim.io.open_dataset``),
         or an already opened, picklable object with ``names`` and
         ``sequence(name)`` (as returned by ``open_dataset``).
     window : int, default 39
@@ -166,6 +167,9 @@ class SpikeWindowDataset(Dataset):
         Base seed of the crop/flip draws.
     sequences : list of str, optional
         Restrict to these sequence names.
+    split : str, optional
+        Split folder of a dataset root (``spikesim.io.resolve_dataset``); may be
+        left out for a split folder, a file, or a root with one split.
     """
 
     def __init__(
@@ -178,6 +182,7 @@ class SpikeWindowDataset(Dataset):
         packed: bool = False,
         seed: int = 0,
         sequences: list[str] | None = None,
+        split: str | None = None,
     ):
         if isinstance(window, bool) or not isinstance(window, int | np.integer) or window < 1:
             raise bad_value("window", window, "an integer >= 1 readouts")
@@ -189,7 +194,9 @@ class SpikeWindowDataset(Dataset):
         self.seed = int(seed)
         self.epoch = 0
         if isinstance(source, str | os.PathLike):
-            self._path: Path | None = Path(source)
+            from spikesim.io import resolve_dataset
+
+            self._path: Path | None = resolve_dataset(source, split)
             self._handle = None
         else:
             if not (hasattr(source, "names") and hasattr(source, "sequence")):

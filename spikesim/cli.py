@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "presets",
     "scenes",
     "dataset",
+    "manifests",
     "info",
     "convert",
     "preview",

@@ -250,16 +250,26 @@ def blend(f0: np.ndarray, f1: np.ndarray, tau: float) -> np.ndarray:
 
 
 def interpolate(
-    f0: np.ndarray, f1: np.ndarray, pair: PairMotion, tau: float, occlusion: bool = True
+    f0: np.ndarray, f1: np.ndarray, pair: PairMotion, tau: float, occlusion: bool = True,
+    roi: tuple[int, int, int, int] | None = None,
 ) -> np.ndarray:
-    """Frame at time ``tau`` in (0, 1) between linear frames ``f0`` and ``f1`` (H, W, 3 float32)."""
+    """Frame at time ``tau`` in (0, 1) between linear frames ``f0`` and ``f1`` (H, W, 3 float32).
+
+    ``roi = (top, left, height, width)`` returns only that box: the motion
+    field is still splatted from the whole frames (content may move into the
+    box), but sampling and blending are done for the box's pixels alone.
+    """
     if not 0.0 <= tau <= 1.0:
         raise bad_value("tau", tau, "0 <= tau <= 1")
-    if pair.static or tau == 0.0 or tau == 1.0:
-        return blend(f0, f1, tau)
     h, w = f0.shape[:2]
-    u = _flow_at(pair, tau, occlusion)
-    xs, ys = _grid(h, w)
+    top, left, bh, bw = roi if roi is not None else (0, 0, h, w)
+    if pair.static or tau == 0.0 or tau == 1.0:
+        return blend(f0[top : top + bh, left : left + bw], f1[top : top + bh, left : left + bw],
+                     tau)
+    u = _flow_at(pair, tau, occlusion)[top : top + bh, left : left + bw]
+    xs, ys = _grid(bh, bw)
+    xs += left
+    ys += top
     m0x, m0y = xs - tau * u[..., 0], ys - tau * u[..., 1]
     m1x, m1y = xs + (1 - tau) * u[..., 0], ys + (1 - tau) * u[..., 1]
     a = np.clip(_sample(f0, m0x, m0y, cubic=True), 0.0, None)
@@ -279,7 +289,7 @@ def interpolate(
         w0 = np.where(none, 1 - tau, w0)
         w1 = np.where(none, tau, w1)
     else:
-        w0 = np.full((h, w), 1 - tau, np.float32)
-        w1 = np.full((h, w), tau, np.float32)
+        w0 = np.full((bh, bw), 1 - tau, np.float32)
+        w1 = np.full((bh, bw), tau, np.float32)
     out = (w0[..., None] * a + w1[..., None] * b) / (w0 + w1)[..., None]
     return out.astype(np.float32)

@@ -19,6 +19,9 @@ def register(sub) -> None:
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan with disk and time estimates, write nothing")
     p.add_argument("--list", action="store_true", help="list the built-in manifests")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="value of ${NAME} in the manifest (e.g. REDS=/data/REDS); "
+                        "default: the environment variable NAME")
     p.set_defaults(func=run)
 
 
@@ -32,13 +35,21 @@ def run(args) -> int:
         return 0
     if not args.manifest:
         raise SpikeSimValueError("MANIFEST is required (a .toml file or builtin:NAME)")
-    manifest = load_manifest(args.manifest)
+    variables = {}
+    for item in args.set:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise SpikeSimValueError(f"--set {item!r}: expected NAME=VALUE")
+        variables[name.strip()] = value
+    manifest = load_manifest(args.manifest, variables)
     if args.dry_run:
-        est = estimate_dataset(manifest, workers=args.dask_local or args.workers, limit=args.limit)
+        est = estimate_dataset(manifest, workers=args.workers, limit=args.limit,
+                               dask_local=args.dask_local, out_dir=args.out)
         print(json.dumps(est, indent=2))
-        print(f"plan: {est['sequences']} sequences ({est['by_split']}), "
-              f"{est['px_readouts']:.3g} pixel-readouts, about "
-              f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s")
+        print(f"plan: {est['sequences']} sequences ({est['by_split']}), {est['to_make']} to "
+              f"make, {est['px_readouts']:.3g} pixel-readouts, about "
+              f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s "
+              f"({est['executor']}, {est['startup_seconds']:.1f} s of it start-up)")
         return 0
     if not args.out:
         raise SpikeSimValueError("--out is required (the output folder)")

@@ -11,12 +11,14 @@ __all__ = ["register", "describe", "run"]
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "info", help="describe a spike file (.h5 file or dataset folder, or .dat)",
+        "info", help="describe a spike file (.h5 file, dataset folder or root, or .dat)",
         description="Shape, readouts, duration, CFA, configuration, firing-rate statistics and "
                     "ground-truth readouts of a spikesim HDF5 file, a dataset folder or a .dat.",
     )
-    p.add_argument("path", help="a .h5 file, a dataset folder, or a .dat capture")
+    p.add_argument("path", help="a .h5 file, a dataset folder or root, or a .dat capture")
     p.add_argument("--all", action="store_true", help="describe every sequence of a folder")
+    p.add_argument("--split", default=None,
+                   help="split folder of a dataset root (as `spikesim dataset` writes it)")
     p.add_argument("--stats-readouts", type=int, default=4096,
                    help="readouts used for firing-rate statistics (default 4096)")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
@@ -81,15 +83,15 @@ def _text(info: dict) -> str:
 
 def run(args) -> int:
     from spikesim._validate import check_int
-    from spikesim.io.index import open_dataset
+    from spikesim.io.index import open_dataset, resolve_dataset
     from spikesim.io.source import is_dat
 
     check_int("--stats-readouts", args.stats_readouts, 1, unit="readouts")
-
+    path = args.path if is_dat(args.path) else resolve_dataset(args.path, args.split)
     if args.all and not is_dat(args.path):
-        sources = list(open_dataset(args.path))
+        sources = list(open_dataset(path))
     else:
-        sources = [source_from_args(args, args.path)]
+        sources = [source_from_args(args, path)]
     infos = [describe(s, args.stats_readouts) for s in sources]
     if args.json:
         print(json.dumps(infos if len(infos) > 1 else infos[0], indent=1, default=str))

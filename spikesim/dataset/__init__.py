@@ -10,6 +10,7 @@ from spikesim.dataset.build import BuildSummary, build_dataset, estimate_dataset
 from spikesim.dataset.manifest import (
     BUILTIN_PREFIX,
     Manifest,
+    builtin_manifest_path,
     builtin_manifests,
     load_manifest,
     parse_manifest,
@@ -22,6 +23,7 @@ __all__ = [
     "Manifest",
     "SequenceTask",
     "build_dataset",
+    "builtin_manifest_path",
     "builtin_manifests",
     "derive_seed",
     "estimate_dataset",

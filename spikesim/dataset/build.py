@@ -39,7 +39,7 @@ from spikesim.errors import SpikeSimFileError, bad_value
 
 __all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
 
-_STAGES = ("scene", "flow", "kernel", "write", "total")
+_STAGES = ("scene", "flow", "warp", "kernel", "write", "total")
 #: Seconds to wait for a Dask scheduler to answer.
 SCHEDULER_TIMEOUT_S = 10
 
@@ -62,7 +62,7 @@ class BuildSummary:
         return [r for r in self.records if r["status"] == "failed"]
 
     def seconds_by_stage(self) -> dict:
-        return {s: sum(r["seconds"][s] for r in self.records if r["status"] == "done")
+        return {s: sum(r["seconds"].get(s, 0.0) for r in self.records if r["status"] == "done")
                 for s in _STAGES}
 
     def to_dict(self) -> dict:
@@ -173,7 +173,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         summary.seconds = time.perf_counter() - t0
         summary.executor += " (interrupted)"
         with contextlib.suppress(Exception):
-            _write_json(out / "build_summary.json", summary.to_dict())
+            _write_summary(out / "build_summary.json", summary)
         raise
     finally:
         bar.close()
@@ -181,7 +181,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     for split in splits:
         if (out / split).is_dir():
             build_index(out / split)
-    _write_json(out / "build_summary.json", summary.to_dict())
+    _write_summary(out / "build_summary.json", summary)
     return summary
 
 
@@ -200,6 +200,27 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
     for p in procs:
         with contextlib.suppress(Exception):
             p.join(timeout=10)
+
+
+def _write_summary(path: Path, summary: BuildSummary) -> None:
+    """Write ``build_summary.json`` with a ``history`` of every run; a run that made
+    and failed nothing (all skipped) keeps the summary, and timing, of the last real one."""
+    previous = None
+    if path.is_file():
+        try:
+            previous = json.loads(path.read_text())
+        except (OSError, ValueError):
+            previous = None
+    history = list((previous or {}).get("history", []))
+    history.append({"finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "executor": summary.executor,
+                    "done": summary.done, "skipped": summary.skipped, "failed": summary.failed,
+                    "seconds": summary.seconds})
+    if previous is not None and summary.done == 0 and summary.failed == 0:
+        data = previous
+    else:
+        data = summary.to_dict()
+    data["history"] = history
+    _write_json(path, data)
 
 
 def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
@@ -319,41 +340,122 @@ def _write_json(path: Path, data) -> None:
         Path(tmp).write_text(json.dumps(data, indent=1))
 
 
+def _parallel_calibration(tasks: list[dict], workers: int, dask_local: int | None) -> tuple:
+    """Run ``tasks`` on the executor a build would start; returns (start-up seconds,
+    seconds of work per task in parallel, results).
+
+    Start-up is the time from asking for the workers until each has made its
+    first sequence (imports, kernel loading, flow and codec set-up), less one
+    ordinary sequence; the work is then timed with all workers busy at once, so
+    contention for cores, memory and disk is in the figure.
+    """
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
+        t0 = time.perf_counter()
+        if dask_local is not None:
+            from dask.distributed import Client, LocalCluster
+
+            cluster = LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True,
+                                   dashboard_address=None)
+            client = Client(cluster)
+            submit = lambda fn, *a: client.submit(fn, *a, pure=False)  # noqa: E731
+            threads = 1
+
+            def close():
+                client.close()
+                cluster.close()
+        else:
+            pool = _new_pool(workers)  # as the build's: workers die with this process
+            submit = pool.submit
+
+            def close():
+                pool.shutdown()
+        try:
+            # each worker makes one sequence first (imports, kernels, flow and codec
+            # set-up: what a real worker pays on its first task), then all are timed
+            for f in [submit(run_task, tasks[0], f"{tmp}/warm{k}", threads)
+                      for k in range(workers)]:
+                f.result()
+            ready = time.perf_counter() - t0
+            t1 = time.perf_counter()
+            recs = [f.result() for f in [submit(run_task, t, tmp, threads) for t in tasks]]
+            per_task = (time.perf_counter() - t1) / len(tasks)
+        finally:
+            close()
+    # the warm-up sequence itself is work a build does too: one lane-task of it is not start-up
+    return max(ready - per_task * workers, 0.0), per_task, recs
+
+
 def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: int = 3,
-                     limit: int | None = None) -> dict:
+                     limit: int | None = None, dask_local: int | None = None,
+                     out_dir: str | os.PathLike | None = None) -> dict:
     """The plan of a build with disk and time estimates from a short calibration run.
 
-    Up to ``calibration_tasks`` sequences spread over the plan are generated
-    into a temporary folder; their bytes and seconds per pixel-readout are
-    extrapolated to the whole plan (time divided by ``workers``).
+    Sequences spread over the plan are generated into a temporary folder the
+    way the build will make them: serially in this process after one untimed
+    warm-up (up to ``calibration_tasks``), or on the same executor the build
+    starts (``workers`` spawned processes or a local Dask cluster, at least two
+    sequences per worker), whose start-up (each worker importing spikesim and
+    loading its kernels) is timed too.  Bytes and seconds are extrapolated to
+    the sequences still to make (those already valid in ``out_dir`` are
+    skipped, as a build would): time = start-up + rounds of ``workers``
+    sequences in parallel.
     """
+
+    workers = _check_workers(workers)
+    parallel = dask_local if dask_local is not None else workers
     tasks = [t.to_dict() for t in plan_tasks(manifest)]
     if limit is not None:
         tasks = tasks[:limit]
+    all_tasks = tasks
+    if out_dir is not None and Path(out_dir).is_dir():
+        tasks = [t for t in tasks if not validate_existing(Path(out_dir) / t["file"], t)]
     px = int(manifest.size[0] * manifest.size[1])
     total_px = px * sum(t["n_readouts"] for t in tasks)
     picks = sorted({round(i * (len(tasks) - 1) / max(calibration_tasks - 1, 1))
                     for i in range(min(calibration_tasks, len(tasks)))})
-    bytes_per_px = seconds_per_px = 0.0
-    with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
-        recs = [run_task(tasks[i], tmp) for i in picks]
-        ok = [r for r in recs if r["status"] == "done"]
-        if ok:
-            cal_px = sum(r["px_readouts"] for r in ok)
-            bytes_per_px = sum(r["bytes"] for r in ok) / cal_px
-            seconds_per_px = sum(r["seconds"]["total"] for r in ok) / cal_px
+    bytes_per_px = seconds_per_task = 0.0
+    recs, startup_s = [], 0.0
+    lanes = min(parallel, len(tasks)) if len(tasks) > 1 else 1
+    if picks and lanes > 1:
+        # as many calibration tasks as keep every worker busy twice
+        n_cal = min(len(tasks), max(calibration_tasks, 2 * lanes))
+        cal = [tasks[round(i * (len(tasks) - 1) / max(n_cal - 1, 1))] for i in range(n_cal)]
+        picks = [tasks.index(t) for t in cal]
+        startup_s, per_task, recs = _parallel_calibration(cal, lanes, dask_local)
+        seconds_per_task = per_task * lanes  # one lane's time per task
+    elif picks:
+        with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
+            t0 = time.perf_counter()
+            run_task(tasks[picks[0]], tmp + "/warm")  # loads kernels, fills OS caches
+            warm_s = time.perf_counter() - t0
+            recs = [run_task(tasks[i], tmp) for i in picks]
+    ok = [r for r in recs if r["status"] == "done"]
+    if ok:
+        cal_px = sum(r["px_readouts"] for r in ok)
+        bytes_per_px = sum(r["bytes"] for r in ok) / cal_px
+        if lanes == 1:
+            seconds_per_task = sum(r["seconds"]["total"] for r in ok) / len(ok)
+            # this process pays the kernel loading once, like the build's
+            startup_s = max(warm_s - seconds_per_task, 0.0)
+    rounds = math.ceil(len(tasks) / max(lanes, 1))
     by_split: dict[str, int] = {}
-    for t in tasks:
+    for t in all_tasks:
         by_split[t["split"]] = by_split.get(t["split"], 0) + 1
     return {
         "manifest": manifest.origin or manifest.name,
-        "sequences": len(tasks),
+        "sequences": len(all_tasks),
+        "to_make": len(tasks),
         "by_split": by_split,
         "readouts_per_sequence": manifest.n_readouts,
         "size": list(manifest.size),
         "px_readouts": total_px,
         "estimated_bytes": int(math.ceil(bytes_per_px * total_px)),
-        "estimated_seconds": seconds_per_px * total_px / max(workers, 1),
+        "estimated_seconds": startup_s + rounds * seconds_per_task if tasks else 0.0,
+        "seconds_per_sequence": seconds_per_task,
+        "startup_seconds": startup_s,
+        "executor": (f"dask LocalCluster ({dask_local} workers)" if dask_local is not None
+                     else f"{workers} local processes" if workers > 1 else "serial"),
         "calibrated_on": [tasks[i]["file"] for i in picks],
         "calibration_failures": [r["error"] for r in recs if r["status"] != "done"],
     }

@@ -52,10 +52,11 @@ def parse_distribution(key: str, value, kind: str = "number",
                        low: float | None = None, high: float | None = None) -> Distribution:
     """Parse and validate a manifest value at key path ``key``.
 
-    ``kind`` is ``"number"`` (bounded by ``low``/``high``) or ``"any"``.
+    ``kind`` is ``"number"`` (bounded by ``low``/``high``) or ``"any"`` (constants
+and ``choice`` values of any type; ``uniform``/``loguniform`` still take numbers).
     """
-    def check_number(path, v):
-        if kind != "number":
+    def check_number(path, v, numeric=False):
+        if kind != "number" and not numeric:
             return v
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise bad_value(path, v, "a finite number")
@@ -71,9 +72,10 @@ def parse_distribution(key: str, value, kind: str = "number",
             raise bad_value(f"{key}.{law}", args, "a non-empty list")
         if law == "choice":
             return Distribution("choice", tuple(check_number(f"{key}.choice", v) for v in args))
-        if kind != "number" or len(args) != 2:
+        if len(args) != 2:
             raise bad_value(f"{key}.{law}", args, "[low, high] numbers")
-        a, b = (check_number(f"{key}.{law}", v) for v in args)
+        # uniform and loguniform are numeric laws whatever the key (options too)
+        a, b = (check_number(f"{key}.{law}", v, numeric=True) for v in args)
         if a > b:
             raise bad_value(f"{key}.{law}", args, "low <= high")
         if law == "loguniform" and a <= 0:

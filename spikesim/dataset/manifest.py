@@ -30,6 +30,8 @@ Unknown keys, bad values and missing sources raise
 from __future__ import annotations
 
 import importlib
+import os
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,12 +41,15 @@ from spikesim.errors import SpikeSimFileError, SpikeSimValueError, bad_value
 from spikesim.noise import PaperNoise, PhysicalNoise
 from spikesim.sensor import Sensor
 
-__all__ = ["Manifest", "NoiseSpec", "SourceSpec", "load_manifest", "parse_manifest",
-           "builtin_manifests", "BUILTIN_PREFIX"]
+__all__ = ["Manifest", "NoiseSpec", "SourceSpec", "ClipSpec", "VideoInfo", "load_manifest",
+           "parse_manifest", "builtin_manifests", "builtin_manifest_path", "BUILTIN_PREFIX",
+           "VIDEO_KINDS"]
 
 BUILTIN_PREFIX = "builtin:"
 _BUILTIN_DIR = Path(__file__).parent / "manifests"
 _SOURCE_KINDS = ("procedural", "reds", "davis", "video", "python")
+VIDEO_KINDS = ("reds", "davis", "video")
+_VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
 _NOISE_MODES = ("none", "paper", "physical")
 _SPLIT_CHARS = set("abcdefghijklmnopqrstuvwxyz0123456789_-")
 
@@ -55,6 +60,39 @@ class NoiseSpec:
     params: dict = field(default_factory=dict)  # name -> Distribution
     weight: float = 1.0
     label: str = ""
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """One video of a video source, as found when the manifest was read."""
+
+    name: str
+    n_frames: int
+    height: int
+    width: int
+    fps: float  # the rate the scene will use
+
+    @property
+    def duration_s(self) -> float:
+        """Seconds from the first to the last frame."""
+        return (self.n_frames - 1) / self.fps
+
+
+@dataclass(frozen=True)
+class ClipSpec:
+    """How a video source cuts clips: how many, when, where (see docs/dataset.md)."""
+
+    count: int | None = 1  # clips per video (None: per_second decides)
+    per_second: float | None = None  # clips per second of video
+    start_s: Distribution | None = None  # None: uniform over the whole video
+    min_gap_s: float | None = None  # None: clips may overlap
+    crop_size: tuple | None = None  # (h, w) stored pixels
+    crop_position: object = "random"  # "random" | "center" | (y, x)
+
+    def clips_of(self, video: VideoInfo) -> int:
+        if self.count is not None:
+            return self.count
+        return max(1, round(self.per_second * video.duration_s))
 
 
 @dataclass(frozen=True)
@@ -71,6 +109,9 @@ class SourceSpec:
     sequences: tuple = ()
     fps: float | None = None
     factory: str | None = None
+    noise: tuple = ()  # labels of the [[noise]] variants this source draws from (all if empty)
+    clips: ClipSpec | None = None  # video kinds
+    videos: tuple = ()  # VideoInfo per sequence (video kinds)
 
 
 @dataclass(frozen=True)
@@ -170,12 +211,18 @@ def _check_noise_draws(path: str, spec: NoiseSpec) -> None:
             raise SpikeSimValueError(f"{path}: {exc}") from None
 
 
-def _parse_source(i: int, t: dict, base: Path) -> SourceSpec:
+def _parse_source(i: int, t: dict, base: Path, clip_s: float = 0.0,
+                  labels: tuple = ()) -> SourceSpec:
     path = f"sources[{i}]"
     kind = t.get("kind")
     if kind not in _SOURCE_KINDS:
         raise bad_value(f"{path}.kind", kind, f"one of {_SOURCE_KINDS}")
-    common = {"kind": True, "split": False}
+    common = {"kind": True, "split": False, "noise": False}
+    noise = _str_list(f"{path}.noise", t["noise"]) if "noise" in t else ()
+    for label in noise:
+        if label not in labels:
+            raise bad_value(f"{path}.noise", label,
+                            f"a [[noise]] label among {sorted(set(labels))}")
     split = t.get("split", "train")
     if not isinstance(split, str) or not split or not set(split) <= _SPLIT_CHARS:
         raise bad_value(f"{path}.split", split, "a lower-case name like 'train' or 'eval'")
@@ -201,7 +248,7 @@ def _parse_source(i: int, t: dict, base: Path) -> SourceSpec:
         opts = {k: parse_distribution(f"{path}.options.{k}", v, "any") for k, v in options.items()}
         _try_procedural(path, scenes, motions, speed, opts)
         return SourceSpec(i, kind, split, _int(f"{path}.count", t["count"], 1, 10**6), scenes,
-                          motions, speed, opts)
+                          motions, speed, opts, noise=noise)
     if kind == "python":
         _take(t, path, {**common, "factory": True, "count": True, "options": False})
         factory = t["factory"]
@@ -211,8 +258,10 @@ def _parse_source(i: int, t: dict, base: Path) -> SourceSpec:
         options = t.get("options", {})
         opts = {k: parse_distribution(f"{path}.options.{k}", v, "any") for k, v in options.items()}
         return SourceSpec(i, kind, split, _int(f"{path}.count", t["count"], 1, 10**6),
-                          options=opts, factory=factory)
-    _take(t, path, {**common, "path": True, "sequences": False, "fps": False, "options": False})
+                          options=opts, factory=factory, noise=noise)
+    _take(t, path, {**common, "path": True, "sequences": False, "sequences_file": False,
+                    "fps": False, "options": False, "count": False, "per_second": False,
+                    "start_s": False, "min_gap_s": False, "crop": False})
     root = Path(t["path"]).expanduser()
     if not root.is_absolute():
         root = base / root
@@ -224,13 +273,131 @@ def _parse_source(i: int, t: dict, base: Path) -> SourceSpec:
     fps = t.get("fps")
     if fps is not None and (isinstance(fps, bool) or not isinstance(fps, (int, float)) or fps <= 0):
         raise bad_value(f"{path}.fps", fps, "a frame rate > 0 (frames per second)")
-    sequences = _video_sequences(kind, root, t.get("sequences", "all"), f"{path}.sequences")
+    wanted = t.get("sequences", "all")
+    if "sequences_file" in t:
+        if "sequences" in t:
+            raise bad_value(f"{path}.sequences_file", t["sequences_file"],
+                            "no 'sequences' beside it (give one of the two)")
+        wanted = _names_from_file(f"{path}.sequences_file", root, t["sequences_file"])
+    sequences = _video_sequences(kind, root, wanted, f"{path}.sequences")
     options = t.get("options", {})
     if not isinstance(options, dict):
         raise bad_value(f"{path}.options", options, "a table of spikesim.scenes.video keywords")
     opts = {k: parse_distribution(f"{path}.options.{k}", v, "any") for k, v in options.items()}
-    return SourceSpec(i, kind, split, len(sequences), options=opts, path=str(root),
-                      sequences=sequences, fps=None if fps is None else float(fps))
+    for key in ("crop", "start_s", "stop_s", "resize"):
+        if key in opts:
+            raise bad_value(f"{path}.options.{key}", options[key],
+                            f"no {key} here: the source's own keys set it (crop = {{size = ...}}, "
+                            "start_s)")
+    videos = tuple(_video_info(kind, root, seq, fps, f"{path}.sequences") for seq in sequences)
+    clips = _parse_clips(path, t, videos, clip_s)
+    return SourceSpec(i, kind, split, sum(clips.clips_of(v) for v in videos), options=opts,
+                      path=str(root), sequences=sequences, fps=None if fps is None else float(fps),
+                      noise=noise, clips=clips, videos=videos)
+
+
+def _names_from_file(path: str, root: Path, name) -> list:
+    if not isinstance(name, str):
+        raise bad_value(path, name, "a text file of sequence names, relative to the source path")
+    file = root / name if root.is_dir() else Path(name)
+    if not file.is_file():
+        raise bad_value(path, str(file), "an existing text file of sequence names (one a line)")
+    names = [ln.strip() for ln in file.read_text().splitlines() if ln.strip()]
+    if not names:
+        raise bad_value(path, str(file), "a file naming at least one sequence")
+    return names
+
+
+def _video_info(kind: str, root: Path, seq: str, fps, path: str) -> VideoInfo:
+    """Frame count, size and rate of one video (headers only, nothing decoded)."""
+    from spikesim.errors import SpikeSimError
+    from spikesim.scenes.readers import VideoFileSource, open_source
+    from spikesim.scenes.video import DEFAULT_FOLDER_FPS
+
+    try:
+        src = open_source(root, layout={"reds": "reds", "davis": "davis"}.get(kind, "auto"),
+                          sequence=None if kind == "video" else seq)
+    except SpikeSimError as exc:
+        raise SpikeSimValueError(f"{path}: video {seq!r}: {exc}") from None
+    rate = fps or src.native_fps or DEFAULT_FOLDER_FPS
+    if isinstance(src, VideoFileSource):
+        src.close()
+    if src.n_frames < 2:
+        raise bad_value(path, seq, f"a video of at least 2 frames ({src.n_frames} found)")
+    return VideoInfo(seq, int(src.n_frames), int(src.height), int(src.width), float(rate))
+
+
+def _parse_clips(path: str, t: dict, videos: tuple, clip_s: float) -> ClipSpec:
+    """Clip keys of a video source, checked against every video of it."""
+    if "count" in t and "per_second" in t:
+        raise bad_value(f"{path}.per_second", t["per_second"],
+                        "no 'count' beside it (one of the two)")
+    count = _int(f"{path}.count", t["count"], 1, 10**6) if "count" in t else None
+    per_second = None
+    if "per_second" in t:
+        v = t["per_second"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
+            raise bad_value(f"{path}.per_second", v, "a number > 0 (clips per second of video)")
+        per_second = float(v)
+    elif count is None:
+        count = 1
+    start = (parse_distribution(f"{path}.start_s", t["start_s"], "number", 0, None)
+             if "start_s" in t else None)
+    gap = None
+    if "min_gap_s" in t:
+        gap = parse_distribution(f"{path}.min_gap_s", t["min_gap_s"], "number", 0, None)
+        if gap.law != "fixed":
+            raise bad_value(f"{path}.min_gap_s", t["min_gap_s"], "a number of seconds >= 0")
+        gap = float(gap.args[0])
+        if start is not None and start.law != "uniform":
+            raise bad_value(f"{path}.start_s", t["start_s"],
+                            "{uniform = [a, b]} (or nothing) when min_gap_s is given")
+    size, position = None, "random"
+    if "crop" in t:
+        crop = _take(t["crop"], f"{path}.crop", {"size": True, "position": False})
+        s = crop["size"]
+        if not (isinstance(s, list) and len(s) == 2):
+            raise bad_value(f"{path}.crop.size", s, "[height, width] in stored pixels")
+        size = (_int(f"{path}.crop.size[0]", s[0], 2, 100_000),
+                _int(f"{path}.crop.size[1]", s[1], 2, 100_000))
+        position = crop.get("position", "random")
+        if isinstance(position, list) and len(position) == 2:
+            position = (_int(f"{path}.crop.position[0]", position[0], 0, 100_000),
+                        _int(f"{path}.crop.position[1]", position[1], 0, 100_000))
+        elif position not in ("random", "center"):
+            raise bad_value(f"{path}.crop.position", position, '"random", "center" or [top, left]')
+    clips = ClipSpec(count, per_second, start, gap, size, position)
+    for v in videos:
+        _check_clips_fit(path, clips, v, clip_s)
+    return clips
+
+
+def _check_clips_fit(path: str, c: ClipSpec, v: VideoInfo, clip_s: float) -> None:
+    where = (f"video {v.name!r} ({v.n_frames} frames at {v.fps:g} fps, {v.height}x{v.width}; "
+             f"each clip lasts {clip_s:.4g} s)")
+    latest = v.duration_s - clip_s
+    if latest < 0:
+        raise SpikeSimValueError(f"{path}: {where} is shorter than one clip")
+    if c.start_s is not None:
+        lo, hi = c.start_s.bounds() if c.start_s.law != "fixed" else (c.start_s.args[0],) * 2
+        if hi > latest + 1e-9:
+            raise bad_value(f"{path}.start_s", hi, f"start times <= {latest:.4g} s for {where}")
+    if c.min_gap_s is not None:
+        lo, hi = c.start_s.args if c.start_s is not None else (0.0, latest)
+        n = c.clips_of(v)
+        if n * (clip_s + c.min_gap_s) > hi - lo + clip_s + c.min_gap_s + 1e-9:
+            raise bad_value(f"{path}.min_gap_s", c.min_gap_s,
+                            f"room for {n} clips {c.min_gap_s:g} s apart in "
+                            f"[{lo:.4g}, {hi:.4g} + clip] s for {where}")
+    if c.crop_size is not None:
+        h, w = c.crop_size
+        if h > v.height or w > v.width:
+            raise bad_value(f"{path}.crop.size", list(c.crop_size), f"at most the frame of {where}")
+        if isinstance(c.crop_position, tuple):
+            y, x = c.crop_position
+            if y + h > v.height or x + w > v.width:
+                raise bad_value(f"{path}.crop.position", list(c.crop_position),
+                                f"a crop inside the frame of {where}")
 
 
 def _try_procedural(path: str, scenes, motions, speed, opts) -> None:
@@ -241,8 +408,10 @@ def _try_procedural(path: str, scenes, motions, speed, opts) -> None:
     kw = {k: d.args[0] for k, d in opts.items()}
     if speed is not None:
         kw["speed"] = speed.args[0]
+    from spikesim.scenes.sources import IMAGES
+
     for scene in scenes:
-        for motion in motions or (None,):
+        for motion in (motions or (None,)) if scene in IMAGES else (None,):
             try:
                 procedural(scene, motion=motion, size=(16, 16), **kw)
             except (SpikeSimError, TypeError) as exc:
@@ -328,19 +497,23 @@ def parse_manifest(data: dict, origin: str = "", base: Path | None = None) -> Ma
     sources = data["sources"]
     if not isinstance(sources, list) or not sources:
         raise bad_value("sources", sources, "one or more [[sources]] tables")
-    source_specs = tuple(_parse_source(i, t, base) for i, t in enumerate(sources))
+    clip_s = window * samples / sensor.clock_hz
+    labels = tuple(n.label for n in noise_specs)
+    source_specs = tuple(_parse_source(i, t, base, clip_s, labels) for i, t in enumerate(sources))
     return Manifest(name, seed, size, window, samples, compression, clean, sensor, noise_specs,
                     source_specs, origin)
 
 
-def load_manifest(path_or_name: str | Path) -> Manifest:
-    """Load a manifest file, or a built-in one as ``"builtin:NAME"``."""
+def load_manifest(path_or_name: str | Path, variables: dict | None = None) -> Manifest:
+    """Load a manifest file, or a built-in one as ``"builtin:NAME"``.
+
+    ``${NAME}`` in any string of the manifest is replaced by ``variables[NAME]``
+    (``spikesim dataset --set NAME=VALUE``) or else the environment variable
+    ``NAME``; one that is set in neither is an error naming it.
+    """
     text_path = str(path_or_name)
     if text_path.startswith(BUILTIN_PREFIX):
-        name = text_path[len(BUILTIN_PREFIX):]
-        if name not in builtin_manifests():
-            raise bad_value("manifest", text_path, f"one of builtin:{sorted(builtin_manifests())}")
-        path = _BUILTIN_DIR / f"{name}.toml"
+        path = builtin_manifest_path(text_path[len(BUILTIN_PREFIX):])
     else:
         path = Path(text_path)
     if not path.is_file():
@@ -352,7 +525,36 @@ def load_manifest(path_or_name: str | Path) -> Manifest:
                         "is not UTF-8: a binary file, or saved in another encoding?)") from None
     except tomllib.TOMLDecodeError as exc:
         raise bad_value("manifest", str(path), f"valid TOML ({exc})") from None
+    data = _substitute(data, dict(variables or {}), text_path)
     return parse_manifest(data, origin=text_path, base=path.parent)
+
+
+def _substitute(value, variables: dict, origin: str):
+    if isinstance(value, dict):
+        return {k: _substitute(v, variables, origin) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_substitute(v, variables, origin) for v in value]
+    if not isinstance(value, str):
+        return value
+
+    def one(match):
+        name = match.group(1)
+        found = variables.get(name, os.environ.get(name))
+        if found is None:
+            raise SpikeSimValueError(
+                f"manifest {origin} needs {name}: give --set {name}=VALUE (or set the "
+                f"environment variable {name})")
+        return str(found)
+
+    return _VAR.sub(one, value)
+
+
+def builtin_manifest_path(name: str) -> Path:
+    """The TOML file of built-in manifest ``name`` (``spikesim manifests`` lists them)."""
+    if name not in builtin_manifests():
+        raise bad_value("manifest", f"{BUILTIN_PREFIX}{name}",
+                        f"one of builtin:{sorted(builtin_manifests())}")
+    return _BUILTIN_DIR / f"{name}.toml"
 
 
 def builtin_manifests() -> dict[str, str]:

@@ -50,9 +50,10 @@ def _slug(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
 
 
-def _draw_noise(manifest: Manifest, rng: np.random.Generator):
-    weights = np.array([n.weight for n in manifest.noises], np.float64)
-    spec = manifest.noises[int(rng.choice(len(weights), p=weights / weights.sum()))]
+def _draw_noise(manifest: Manifest, rng: np.random.Generator, labels: tuple = ()):
+    noises = [n for n in manifest.noises if not labels or n.label in labels]
+    weights = np.array([n.weight for n in noises], np.float64)
+    spec = noises[int(rng.choice(len(weights), p=weights / weights.sum()))]
     if spec.mode == "none":
         return None, spec.label
     params = {}
@@ -63,41 +64,80 @@ def _draw_noise(manifest: Manifest, rng: np.random.Generator):
 
 
 def _scene_specs(src: SourceSpec, manifest: Manifest):
-    """(short name, scene spec without random draws) for each sequence of a source."""
+    """(short name, scene spec without random draws, video) for each sequence of a source."""
+    from spikesim.scenes.sources import IMAGES
+
     h, w = manifest.size
     if src.kind == "procedural":
         motions = src.motions or (None,)
         for k in range(src.count):
             scene = src.scenes[k % len(src.scenes)]
-            motion = motions[(k // len(src.scenes)) % len(motions)]
+            # animated scenes have their motion built in: the motions apply to pictures
+            motion = motions[(k // len(src.scenes)) % len(motions)] if scene in IMAGES else None
             name = f"{scene}-{motion}-{k:04d}" if motion else f"{scene}-{k:04d}"
-            yield name, {"kind": "procedural", "name": scene, "motion": motion, "size": [h, w]}
+            spec = {"kind": "procedural", "name": scene, "motion": motion, "size": [h, w]}
+            yield name, spec, None
     elif src.kind == "python":
         for k in range(src.count):
             yield f"{_slug(src.factory.split(':')[1])}-{k:04d}", {
-                "kind": "python", "factory": src.factory, "index": k, "size": [h, w]}
+                "kind": "python", "factory": src.factory, "index": k, "size": [h, w]}, None
     else:
         layout = {"reds": "reds", "davis": "davis", "video": "auto"}[src.kind]
-        for seq in src.sequences:
-            spec = {"kind": "video", "path": src.path, "layout": layout, "fps": src.fps,
-                    "size": [h, w]}
-            if src.kind != "video":
-                spec["sequence"] = seq
-            yield _slug(seq), spec
+        for video in src.videos:
+            n = src.clips.clips_of(video)
+            for k in range(n):
+                spec = {"kind": "video", "path": src.path, "layout": layout, "fps": src.fps,
+                        "size": [h, w]}
+                if src.kind != "video":
+                    spec["sequence"] = video.name
+                name = _slug(video.name) if n == 1 else f"{_slug(video.name)}-c{k:03d}"
+                yield name, spec, (video, k, n)
+
+
+def _draw_clip(src: SourceSpec, spec: dict, clip: tuple, clip_s: float,
+               rng: np.random.Generator) -> None:
+    """Start time and crop box of clip ``k`` of ``n`` of a video, from the sequence's rng."""
+    video, k, n = clip
+    c = src.clips
+    latest = video.duration_s - clip_s
+    if c.min_gap_s is not None:
+        # n equal slots over the allowed range; clip k starts anywhere in its slot that
+        # leaves the clip and the gap inside it, so clips never come closer than the gap
+        lo, hi = c.start_s.args if c.start_s is not None else (0.0, latest)
+        slot = (hi - lo + clip_s + c.min_gap_s) / n
+        start = lo + k * slot + rng.uniform(0.0, max(slot - clip_s - c.min_gap_s, 0.0))
+    elif c.start_s is not None:
+        start = float(c.start_s.sample(rng))
+    else:
+        start = float(rng.uniform(0.0, latest))
+    spec["start_s"] = round(min(max(start, 0.0), latest), 9)
+    spec["clip"] = k  # not n: a clip stays the same when more are asked for (without min_gap_s)
+    if c.crop_size is not None:
+        ch, cw = c.crop_size
+        if c.crop_position == "random":
+            top = int(rng.integers(0, video.height - ch + 1))
+            left = int(rng.integers(0, video.width - cw + 1))
+        elif c.crop_position == "center":
+            top, left = (video.height - ch) // 2, (video.width - cw) // 2
+        else:
+            top, left = c.crop_position
+        spec["crop"] = [top, left, ch, cw]
 
 
 def plan_tasks(manifest: Manifest) -> list[SequenceTask]:
     """All sequence tasks of a manifest, in a stable order."""
     tasks = []
     for src in manifest.sources:
-        for short, spec in _scene_specs(src, manifest):
+        for short, spec, clip in _scene_specs(src, manifest):
             seq_id = f"{src.index:02d}-{short}"
             seed = derive_seed(manifest.seed, f"{src.split}/{seq_id}")
             rng = np.random.default_rng(seed)
             if src.speed is not None:
                 spec["speed"] = src.speed.sample(rng)
             spec["options"] = {k: d.sample(rng) for k, d in src.options.items()}
-            noise, label = _draw_noise(manifest, rng)
+            noise, label = _draw_noise(manifest, rng, src.noise)
+            if clip is not None:
+                _draw_clip(src, spec, clip, manifest.n_readouts / manifest.sensor.clock_hz, rng)
             sensor = manifest.sensor.to_dict()
             sensor["noise"] = noise
             sensor = Sensor.from_dict(sensor).to_dict()  # canonical: every field, as stored

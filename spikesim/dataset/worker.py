@@ -3,7 +3,10 @@
 Runs in whatever process the executor chose (the caller's, a spawned pool
 worker, or a Dask worker).  The file is written atomically by the HDF5
 writer, so a crash leaves no file under its final name.  The result records
-where the time went (scene rendering / optical flow / kernel / writing).
+where the time went (scene decoding and rendering / optical flow / warping of
+interpolated key frames / kernel / writing) and, for video clips, the clip's
+video, start time, crop box and measured motion (also stored in the file's
+``meta`` attribute under ``dataset.clip``).
 """
 
 from __future__ import annotations
@@ -61,10 +64,29 @@ def build_scene(spec: dict, seed: int):
     if spec["kind"] == "python":
         factory = resolve_factory(spec["factory"])
         return factory(index=spec["index"], size=size, seed=seed, **options)
-    kwargs = {"fps": spec.get("fps"), "layout": spec.get("layout", "auto"), "resize": size}
+    kwargs = {"fps": spec.get("fps"), "layout": spec.get("layout", "auto"), "resize": size,
+              "start_s": spec.get("start_s", 0.0), "crop": spec.get("crop")}
     if spec.get("sequence"):
         kwargs["sequence"] = spec["sequence"]
     return ss.scenes.video(spec["path"], **kwargs, **options)
+
+
+def clip_record(spec: dict, scene, clock_hz: float) -> dict | None:
+    """What a video clip is: video, start time, crop box and the motion measured in it
+    (output pixels per readout: median and 95th percentile of the flow inside the crop)."""
+    if spec.get("kind") != "video":
+        return None
+    motion = scene.motion_stats() if hasattr(scene, "motion_stats") else {}
+    video = spec.get("sequence") or Path(spec["path"]).name
+    return {
+        "video": video, "path": spec["path"], "start_s": spec.get("start_s", 0.0),
+        "crop": spec.get("crop"), "clip": spec.get("clip"),
+        "motion_px_per_readout": {
+            "median": motion.get("median_px_per_s", 0.0) / clock_hz,
+            "p95": motion.get("p95_px_per_s", 0.0) / clock_hz,
+            "max": motion.get("max_px_per_s", 0.0) / clock_hz,
+            "pairs": motion.get("pairs", 0)},
+    }
 
 
 def validate_existing(path: Path, task: dict) -> bool:
@@ -91,8 +113,8 @@ def validate_existing(path: Path, task: dict) -> bool:
 def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
     """Simulate and write one sequence; returns a result record (never raises).
 
-    ``threads`` limits numba's threads in this process (one worker per core
-    should not oversubscribe the machine).
+    ``threads`` limits numba's and OpenCV's threads in this process (one worker
+    per core should not oversubscribe the machine).
     """
     import numba
 
@@ -101,12 +123,16 @@ def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
     from spikesim.simulate import simulate_chunks
 
     if threads:
+        import cv2
+
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+        cv2.setNumThreads(max(1, int(threads)))  # decoding, flow and warping: no oversubscription
     path = Path(out_dir) / task["file"]
     t_start = time.perf_counter()
     record = {"id": task["id"], "file": task["file"], "split": task["split"], "status": "done",
               "bytes": 0, "error": None, "px_readouts": 0,
-              "seconds": {"scene": 0.0, "flow": 0.0, "kernel": 0.0, "write": 0.0, "total": 0.0}}
+              "seconds": {"scene": 0.0, "flow": 0.0, "warp": 0.0, "kernel": 0.0, "write": 0.0,
+                          "total": 0.0}}
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         scene = _TimedScene(build_scene(task["scene"], task["seed"]))
@@ -127,13 +153,19 @@ def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
                 if len(chunk.gt):
                     writer.add_gt(chunk.gt, chunk.gt_index)
                 write_s += time.perf_counter() - t0
+            clip = clip_record(task["scene"], scene._scene, sensor.clock_hz)
+            if clip is not None:  # measured while simulating; written with the attributes
+                writer.meta["dataset"] = {**meta["dataset"], "clip": clip}
+                record["clip"] = clip
             t_close = time.perf_counter()
         write_s += time.perf_counter() - t_close
         produce_s = time.perf_counter() - produce_start - write_s
         stats = getattr(scene._scene, "stats", None) or {}
         flow_s = float(stats.get("flow_s", 0.0))
-        record["seconds"].update(scene=scene.seconds - flow_s, flow=flow_s,
-                                 kernel=max(produce_s - scene.seconds, 0.0), write=write_s)
+        warp_s = float(stats.get("interp_s", 0.0))
+        record["seconds"].update(scene=max(scene.seconds - flow_s - warp_s, 0.0), flow=flow_s,
+                                 warp=warp_s, kernel=max(produce_s - scene.seconds, 0.0),
+                                 write=write_s)
         record["bytes"] = path.stat().st_size
         record["px_readouts"] = int(np.prod(sensor.shape)) * task["n_readouts"]
     except Exception as exc:  # noqa: BLE001 - reported per sequence, others go on

@@ -25,7 +25,14 @@ from spikesim.io.h5 import (
     read_header,
     write_h5,
 )
-from spikesim.io.index import Dataset, build_index, load_index, open_dataset
+from spikesim.io.index import (
+    Dataset,
+    build_index,
+    dataset_splits,
+    load_index,
+    open_dataset,
+    resolve_dataset,
+)
 from spikesim.io.source import open_source
 from spikesim.io.verify import verify, verify_file
 
@@ -41,6 +48,7 @@ __all__ = [
     "H5Writer",
     "Sequence",
     "build_index",
+    "dataset_splits",
     "export_sjdd",
     "guess_dat_shape",
     "load_index",
@@ -53,6 +61,7 @@ __all__ = [
     "read_header",
     "verify",
     "verify_file",
+    "resolve_dataset",
     "write_dat",
     "write_h5",
 ]

@@ -6,7 +6,14 @@ ground-truth readout indices, whether it has a clean twin, its full
 configuration, and the file's size and modification time.  Everything in it
 is derived from the files, so :func:`build_index` can always rebuild it; a
 reader that finds it missing or out of date (a file added, removed or
-rewritten) rebuilds it in memory and warns when it was stale.
+rewritten) rebuilds it in memory and warns when it was stale.  Sequences made
+from video clips by the dataset builder also carry ``clip`` (video, start time,
+crop box, measured motion).
+
+:func:`resolve_dataset` turns what a user names (a dataset root written by
+``spikesim dataset`` with its split folders, a split folder, or one file) into
+the file or split folder to read; every command and loader that takes data
+calls it.
 """
 
 from __future__ import annotations
@@ -23,7 +30,8 @@ from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, bad_value
 from spikesim.io._atomic import atomic_path, is_temp_name
 from spikesim.io.h5 import Sequence, read_header
 
-__all__ = ["INDEX_NAME", "Dataset", "build_index", "load_index", "open_dataset"]
+__all__ = ["INDEX_NAME", "Dataset", "build_index", "dataset_splits", "load_index", "open_dataset",
+           "resolve_dataset"]
 
 INDEX_NAME = "index.json"
 INDEX_FORMAT = "spikesim-index"
@@ -51,6 +59,9 @@ def _scan(folder: Path, progress: bool = False) -> dict:
     for path in tqdm(files, disable=not progress, desc="index", unit="file", leave=False):
         entry = {"name": path.stem, "file": path.name, **_stamp(path)}
         entry.update(read_header(path))
+        clip = (entry["meta"].get("dataset") or {}).get("clip")
+        if clip is not None:  # video, start time, crop box, motion of a dataset clip
+            entry["clip"] = clip
         entries.append(entry)
     names = [e["name"] for e in entries]
     if len(set(names)) != len(names):
@@ -100,6 +111,57 @@ def _check_folder(folder) -> Path:
     if not folder.is_dir():
         raise SpikeSimFileError(f"no such dataset folder: {str(folder)!r}")
     return folder
+
+
+def _holds_sequences(folder: Path) -> bool:
+    return (folder / INDEX_NAME).is_file() or any(
+        p.suffix.lower() in _SUFFIXES and not is_temp_name(p) for p in folder.iterdir()
+        if p.is_file())
+
+
+def dataset_splits(folder: str | os.PathLike) -> list[str]:
+    """Names of the split folders (sub-folders holding sequences) of a dataset root."""
+    folder = _check_folder(folder)
+    return sorted(p.name for p in folder.iterdir() if p.is_dir() and _holds_sequences(p))
+
+
+def resolve_dataset(path: str | os.PathLike, split: str | None = None) -> Path:
+    """The file or split folder to read for ``path``.
+
+    ``path`` may be one sequence file, a folder of sequence files (a split), or
+    a dataset root as ``spikesim dataset`` writes it (``ROOT/<split>/*.h5``).
+    For a root, ``split`` picks the split folder; it may be left out when the
+    root has exactly one.  Raises :class:`SpikeSimFileError` for a missing
+    path and :class:`SpikeSimValueError` naming the splits found when the
+    choice is missing or wrong.
+    """
+    p = Path(path)
+    if p.is_file():
+        if split is not None:
+            raise bad_value("split", split, f"no split: {str(p)!r} is a single file")
+        return p
+    folder = _check_folder(p)
+    if split is not None and not isinstance(split, str):
+        raise bad_value("split", split, "a split name (a string)")
+    splits = dataset_splits(folder)
+    if _holds_sequences(folder):
+        if split is None or split == folder.name:
+            return folder
+        if split not in splits:
+            raise bad_value("split", split, f"{folder.name!r}: {str(folder)!r} is a split folder"
+                            + (f" (sub-folders with sequences: {splits})" if splits else ""))
+    if split is not None:
+        if split not in splits:
+            raise bad_value("split", split, f"one of the splits found in {str(folder)!r}: "
+                            f"{splits or 'none'}")
+        return folder / split
+    if len(splits) == 1:
+        return folder / splits[0]
+    if not splits:
+        raise SpikeSimFormatError(f"{str(folder)!r} holds no spikesim sequence (*.h5) and no "
+                                  "split folder of them")
+    raise bad_value("split", None, f"one of the splits found in {str(folder)!r}: {splits} "
+                    "(the folder is a dataset root; pick one with split=NAME / --split NAME)")
 
 
 class Dataset:
@@ -162,14 +224,16 @@ class Dataset:
         return f"Dataset({str(self.root)!r}: {len(self)} sequences, {self.n_readouts} readouts)"
 
 
-def open_dataset(path: str | os.PathLike) -> Dataset:
-    """Open a spikesim dataset: one ``.h5`` file, or a folder of them with an index.
+def open_dataset(path: str | os.PathLike, split: str | None = None) -> Dataset:
+    """Open a spikesim dataset: one ``.h5`` file, a folder of them with an index,
+    or a dataset root with split folders (``split`` picks one; see
+    :func:`resolve_dataset`).
 
     A folder's ``index.json`` is used when it matches the files; when it is
     missing it is rebuilt in memory from the files, and when it is stale the
     same happens with a warning (run :func:`build_index` to refresh it).
     """
-    path = Path(path)
+    path = resolve_dataset(path, split)
     if path.is_file():
         return Dataset(path, [Sequence(path)])
     folder = _check_folder(path)

@@ -13,6 +13,15 @@ frames in between — exactly what the simulator integrates, so ground truth
 and spikes agree.  After the last frame the last frame is held (key times
 continue every ``1 / fps``).
 
+**Crop first.**  With ``crop`` the scene decodes, analyses and warps only the
+crop plus a ``margin`` of surrounding pixels (clipped to the frame), so motion
+that enters the crop from outside is interpolated as it is in the full frame,
+and cuts the crop out of the result afterwards; the key-frame count follows
+the motion inside the crop only.  ``start_s`` may fall between frames: scene
+time 0 is video time ``start_s`` exactly.  :meth:`VideoScene.motion_stats`
+reports the measured motion inside the output (pixels per second: median,
+95th percentile and maximum over the pairs analysed so far).
+
 Flow is computed once per frame pair and kept in a small LRU cache (pairs of
 the current chunk); decoded frames and key frames are cached the same way.
 """
@@ -35,10 +44,15 @@ from spikesim.scenes.base import Scene
 from spikesim.scenes.photometry import check_exposure, decode_frame
 from spikesim.scenes.readers import FrameSource, SceneSource, VideoFileSource, open_source
 
-__all__ = ["VideoScene", "video", "as_video", "DEFAULT_MAX_PX", "DEFAULT_FOLDER_FPS"]
+__all__ = ["VideoScene", "video", "as_video", "DEFAULT_MAX_PX", "DEFAULT_FOLDER_FPS",
+           "DEFAULT_MARGIN"]
 
 #: Default largest displacement between key frames, pixels.
 DEFAULT_MAX_PX = 1.0
+#: Pixels (stored) around a crop that flow and warping see by default.
+DEFAULT_MARGIN = 48
+#: Every ``_MOTION_STEP``-th pixel (each axis) of the output enters the motion statistics.
+_MOTION_STEP = 2
 #: Frame rate assumed for image folders when ``fps`` is not given (REDS and DAVIS are 24 fps).
 DEFAULT_FOLDER_FPS = 24.0
 
@@ -87,10 +101,16 @@ class VideoScene(Scene):
         (area averaging when shrinking, bicubic when enlarging).  Default: no resize.
     crop : (top, left, height, width), optional
         Region of the stored frame to keep, in stored pixels.  Default: all.
+    margin : int, optional
+        Stored pixels around ``crop`` that flow and warping also see (clipped
+        to the frame; default :data:`DEFAULT_MARGIN`).  Motion of up to about
+        this many pixels per frame pair across the crop border is interpolated
+        as in the full frame.  Ignored without ``crop``.
     start_s, stop_s : float
-        Time range of the video to use, seconds of video time (frames with
-        ``start_s <= i / fps <= stop_s``); default the whole video.  Scene time
-        0 is the first frame kept.
+        Time range of the video to use, seconds of video time; default the
+        whole video.  Scene time 0 is video time ``start_s`` (which may fall
+        between two frames); frames with ``start_s - 1/fps < i / fps <= stop_s``
+        are kept.
     linear : bool
         Frames already hold linear light (default ``False``: decode sRGB).
     exposure : float
@@ -122,6 +142,7 @@ class VideoScene(Scene):
         *,
         resize: tuple[int, int] | None = None,
         crop: tuple[int, int, int, int] | None = None,
+        margin: int | None = None,
         start_s: float = 0.0,
         stop_s: float | None = None,
         linear: bool | None = None,
@@ -164,8 +185,19 @@ class VideoScene(Scene):
         self.resize = _check_box("resize", resize, 2, "(H, W) integers >= 1")
         if self.resize is not None and min(self.resize) < 1:
             raise bad_value("resize", resize, "(H, W) integers >= 1")
+        if margin is None:
+            margin = DEFAULT_MARGIN
+        if isinstance(margin, bool) or not isinstance(margin, (int, np.integer)) or margin < 0:
+            raise bad_value("margin", margin, "an integer >= 0 (stored pixels)")
+        self.margin = int(margin)
+        self._region, self._inner = self._work_boxes()
         start_s = check_time(start_s)
-        first = max(0, math.ceil(start_s * self.fps - 1e-9))
+        if start_s < 0:
+            raise bad_value("start_s", start_s, "a time >= 0 seconds")
+        pos = start_s * self.fps
+        first = math.floor(pos + 1e-9)
+        # scene time t is at local frame position t * fps + offset
+        self._offset = 0.0 if pos - first < 1e-9 else pos - first
         last = source.n_frames - 1
         if stop_s is not None:
             last = min(last, math.floor(check_time(stop_s) * self.fps + 1e-9))
@@ -187,9 +219,29 @@ class VideoScene(Scene):
         self._pairs = _LRU(max(1, cache_pairs))
         self._keys = _LRU(8)
         self._counts: dict[int, int] = {}
+        self._motion: dict[int, np.ndarray] = {}  # pair -> output px per frame interval
         self._shared = shared_flows
         self.stats = {"pairs": 0, "static_pairs": 0, "flow_s": 0.0, "interp_s": 0.0,
                       "key_frames": 0}
+
+    def _work_boxes(self):
+        """(region, inner): the stored box decoded and analysed (crop + margin,
+        clipped; None = whole frame) and the crop inside it (None = all of it)."""
+        if self.crop is None:
+            return None, None
+        top, left, ch, cw = self.crop
+        m = self.margin
+        r0, c0 = max(0, top - m), max(0, left - m)
+        r1 = min(self.source.height, top + ch + m)
+        c1 = min(self.source.width, left + cw + m)
+        return (r0, c0, r1 - r0, c1 - c0), (top - r0, left - c0, ch, cw)
+
+    @property
+    def _scale(self) -> float:
+        """Output pixels per analysed pixel (largest of the two axes)."""
+        if self.crop is None or self.resize is None:
+            return 1.0
+        return max(self.resize[0] / self.crop[2], self.resize[1] / self.crop[3])
 
     # -- frames and pairs ---------------------------------------------------------------
     @property
@@ -200,24 +252,90 @@ class VideoScene(Scene):
         """Linear radiance (H, W, 3) float32 of frame ``i`` (0-based, within the range)."""
         if not 0 <= i < self.n_frames:
             raise bad_value("frame index", i, f"0..{self.n_frames - 1}")
+        if self._region is None:
+            return self._work(i)
+        return self._keys.get_or((i, -1), lambda: self._output(self._work(i)))
+
+    def _work(self, i: int) -> np.ndarray:
+        """Frame ``i`` as analysed: the whole (resized) frame, or crop + margin."""
         return self._frames.get_or(i, lambda: self._load(i))
 
     def _load(self, i: int) -> np.ndarray:
         raw = self.source.read(self._first + i)
-        if self.crop is not None:
-            top, left, ch, cw = self.crop
-            raw = raw[top : top + ch, left : left + cw]
+        if self._region is not None:
+            top, left, rh, rw = self._region
+            raw = raw[top : top + rh, left : left + rw]
         img = decode_frame(raw, linear=self.linear, exposure=self.exposure,
                            name=f"frame {self._first + i} of {self.source.name}")
-        if self.resize is not None and img.shape[:2] != tuple(self.resize):
-            h, w = self.resize
-            shrink = h < img.shape[0] or w < img.shape[1]
-            img = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if shrink
-                             else cv2.INTER_CUBIC)
-            img = np.clip(img, 0.0, None)
+        if self._region is None:
+            img = self._resized(img)
         img = np.ascontiguousarray(img, np.float32)
         img.setflags(write=False)
         return img
+
+    def _resized(self, img: np.ndarray) -> np.ndarray:
+        if self.resize is None or img.shape[:2] == tuple(self.resize):
+            return img
+        h, w = self.resize
+        shrink = h < img.shape[0] or w < img.shape[1]
+        img = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_CUBIC)
+        return np.clip(img, 0.0, None)
+
+    def _output(self, work: np.ndarray) -> np.ndarray:
+        """The output image of an analysed one: the crop cut out of crop + margin, resized."""
+        if self._inner is None:
+            return work
+        top, left, ch, cw = self._inner
+        out = np.ascontiguousarray(self._resized(work[top : top + ch, left : left + cw]),
+                                   np.float32)
+        out.setflags(write=False)
+        return out
+
+    def _inside(self, a: np.ndarray | None) -> np.ndarray | None:
+        """The crop part of an analysed-size array."""
+        if a is None or self._inner is None:
+            return a
+        top, left, ch, cw = self._inner
+        return a[top : top + ch, left : left + cw]
+
+    def _displacement(self, p: PairMotion) -> float:
+        """Largest consistent displacement inside the output, output pixels."""
+        if p.static:
+            return 0.0
+        if self._inner is None:
+            return p.max_disp
+        mags = [np.sqrt((self._inside(f) ** 2).sum(-1)) for f in (p.fwd, p.bwd)]
+        ok = [m[self._inside(v)] for m, v in zip(mags, (p.valid0, p.valid1), strict=True)]
+        ok = [m for m in ok if m.size]
+        disp = max(float(m.max()) for m in ok) if ok else max(float(m.max()) for m in mags)
+        return disp * self._scale
+
+    def _record_motion(self, i: int, p: PairMotion) -> None:
+        step = _MOTION_STEP
+        h, w = self.height, self.width
+        if p.static:
+            n = ((h + step - 1) // step) * ((w + step - 1) // step)
+            self._motion[i] = np.zeros(n, np.float32)
+            return
+        fwd = self._inside(p.fwd)[::step, ::step]
+        self._motion[i] = (np.sqrt((fwd**2).sum(-1)) * self._scale).ravel().astype(np.float32)
+
+    def motion_stats(self) -> dict:
+        """Measured motion inside the output over the frame pairs analysed so far.
+
+        Forward-flow magnitudes (every second pixel of each axis, output pixels)
+        times ``fps``: ``median_px_per_s``, ``p95_px_per_s`` and ``max_px_per_s``
+        (pixels per second of video time), and ``pairs`` (how many pairs).
+        Static pairs count as no motion.  Divide by the sensor's clock rate for
+        pixels per readout.
+        """
+        if not self._motion:
+            return {"pairs": 0, "median_px_per_s": 0.0, "p95_px_per_s": 0.0,
+                    "max_px_per_s": 0.0}
+        mags = np.concatenate([self._motion[k] for k in sorted(self._motion)]) * self.fps
+        return {"pairs": len(self._motion), "median_px_per_s": float(np.median(mags)),
+                "p95_px_per_s": float(np.percentile(mags, 95)),
+                "max_px_per_s": float(mags.max())}
 
     def pair(self, i: int) -> PairMotion:
         """Motion between frames ``i`` and ``i + 1`` (computed once, cached)."""
@@ -225,14 +343,16 @@ class VideoScene(Scene):
             if self._shared is not None and i in self._shared:
                 p = self._shared[i]
             else:
-                p = analyse_pair(self.frame(i), self.frame(i + 1), self.flow, self.static_tol)
+                p = analyse_pair(self._work(i), self._work(i + 1), self.flow, self.static_tol)
                 self.stats["pairs"] += 1
                 self.stats["static_pairs"] += int(p.static)
                 self.stats["flow_s"] += p.seconds
                 if self._shared is not None:
                     self._shared[i] = p
             self._counts[i] = 0 if p.static else _n_intermediate(
-                p.max_disp, self.max_px, self.max_intermediate)
+                self._displacement(p), self.max_px, self.max_intermediate)
+            if i not in self._motion:
+                self._record_motion(i, p)
             return p
 
         return self._pairs.get_or(i, make)
@@ -255,8 +375,9 @@ class VideoScene(Scene):
 
         def make() -> np.ndarray:
             t0 = time.perf_counter()
-            out = interpolate(self.frame(i), self.frame(i + 1), self.pair(i), j / (m + 1),
-                              occlusion=self.occlusion)
+            out = interpolate(self._work(i), self._work(i + 1), self.pair(i), j / (m + 1),
+                              occlusion=self.occlusion, roi=self._inner)
+            out = np.ascontiguousarray(self._resized(out), np.float32)
             self.stats["interp_s"] += time.perf_counter() - t0
             self.stats["key_frames"] += 1
             out.setflags(write=False)
@@ -266,24 +387,33 @@ class VideoScene(Scene):
 
     # -- scene protocol -----------------------------------------------------------------
     def key_times(self, start_s: float, stop_s: float) -> np.ndarray:
-        """Frame times and adaptive intermediate times bracketing ``[start_s, stop_s]``."""
+        """Frame times and adaptive intermediate times bracketing ``[start_s, stop_s]``.
+
+        Times are scene times (video time minus ``start_s``); when ``start_s``
+        falls between frames, t = 0 is a key time too (the blend there lies on
+        the straight line between its neighbours, so the grid stays global)."""
         start_s, stop_s = check_time(start_s), check_time(stop_s)
+        off = self._offset
         last = self.n_frames - 1
-        i0 = min(max(0, math.floor(start_s * self.fps)), last)
-        i1 = max(i0, math.ceil(stop_s * self.fps))
-        times = []
+        i0 = min(max(0, math.floor(start_s * self.fps + off)), last)
+        i1 = max(i0, math.ceil(stop_s * self.fps + off))
+        pos = []
         for i in range(i0, min(i1, last)):
             m = self.n_intermediate(i)
-            times.extend((i + j / (m + 1)) / self.fps for j in range(m + 1))
-        times.extend(k / self.fps for k in range(min(i1, last), i1 + 1))
-        t = np.asarray(times, np.float64)
+            pos.extend(i + j / (m + 1) for j in range(m + 1))
+        pos.extend(range(min(i1, last), i1 + 1))
+        t = (np.asarray(pos, np.float64) - off) / self.fps
+        if off:
+            t = t[t > 0]
+            if i0 == 0:
+                t = np.concatenate([[0.0], t])
         lo = max(0, int(np.searchsorted(t, start_s, side="right")) - 1)
         hi = int(np.searchsorted(t, stop_s, side="left")) + 1
         return t[lo:hi]
 
     def radiance(self, t: float) -> np.ndarray:
         """Key frame at a key time, linear blend of the neighbouring key frames between."""
-        pos = check_time(t) * self.fps
+        pos = check_time(t) * self.fps + self._offset
         if pos <= 0:
             return self.frame(0)
         if pos >= self.n_frames - 1:
@@ -319,6 +449,7 @@ class VideoScene(Scene):
             "start_s": self.start_s,
             "stop_s": self.stop_s,
             "crop": list(self.crop) if self.crop else None,
+            "margin": self.margin if self.crop else None,
             "resize": list(self.resize) if self.resize else None,
             "linear": self.linear,
             "exposure": self.exposure,

@@ -1,0 +1,47 @@
+"""build_summary.json keeps the real build's timing across do-nothing re-runs; the dry
+run counts worker start-up and skips what is already built."""
+
+from __future__ import annotations
+
+import json
+
+from spikesim.dataset import build_dataset, estimate_dataset, parse_manifest
+
+
+def _manifest(count=3):
+    return parse_manifest({
+        "dataset": {"name": "h", "seed": 2, "size": [24, 32], "window": 9,
+                    "samples_per_sequence": 2},
+        "sources": [{"kind": "procedural", "scenes": ["coffee"], "motions": ["pan"],
+                     "speed": 300, "count": count}]})
+
+
+def test_rerun_that_does_nothing_keeps_the_real_timing(tmp_path):
+    m = _manifest()
+    first = build_dataset(m, tmp_path, progress=False)
+    summary = json.loads((tmp_path / "build_summary.json").read_text())
+    assert summary["done"] == 3 and summary["seconds"] == first.seconds
+    again = build_dataset(m, tmp_path, progress=False)
+    assert again.skipped == 3 and again.done == 0
+    kept = json.loads((tmp_path / "build_summary.json").read_text())
+    assert kept["done"] == 3 and kept["seconds"] == first.seconds
+    assert kept["seconds_by_stage"] == summary["seconds_by_stage"]
+    assert [h["done"] for h in kept["history"]] == [3, 0]
+    assert [h["skipped"] for h in kept["history"]] == [0, 3]
+    # a run that does work writes its own summary, the history goes on
+    build_dataset(_manifest(count=4), tmp_path, progress=False)
+    last = json.loads((tmp_path / "build_summary.json").read_text())
+    assert last["done"] == 1 and last["skipped"] == 3 and len(last["history"]) == 3
+
+
+def test_dry_run_counts_startup_and_skips_what_is_built(tmp_path):
+    m = _manifest(count=4)
+    serial = estimate_dataset(m, calibration_tasks=2)
+    assert serial["to_make"] == 4 and serial["executor"] == "serial"
+    assert serial["estimated_seconds"] >= 4 * serial["seconds_per_sequence"] > 0
+    pool = estimate_dataset(m, workers=2, calibration_tasks=1)
+    assert pool["startup_seconds"] > 0 and pool["executor"] == "2 local processes"
+    assert pool["estimated_seconds"] >= pool["startup_seconds"] + 2 * pool["seconds_per_sequence"]
+    build_dataset(_manifest(count=3), tmp_path, progress=False)
+    rest = estimate_dataset(m, out_dir=tmp_path, calibration_tasks=1)
+    assert rest["sequences"] == 4 and rest["to_make"] == 1
