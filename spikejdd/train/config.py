@@ -113,8 +113,8 @@ class TrainConfig:
             h, w = (int(v) for v in self.val_size)
         except (TypeError, ValueError):
             raise bad_value("val_size", self.val_size, "[height, width] in pixels") from None
-        if h < 8 or w < 8 or h % 2 or w % 2:
-            raise bad_value("val_size", self.val_size, "even sizes >= 8 pixels")
+        if h < 12 or w < 12 or h % 2 or w % 2:  # SSIM-gauss11 needs 11 pixels
+            raise bad_value("val_size", self.val_size, "even sizes >= 12 pixels")
         if not self.val_speeds or any(not (float(s) >= 0) for s in self.val_speeds):
             raise bad_value("val_speeds", self.val_speeds, "one or more speeds >= 0 px/s")
         if self.threads is not None and (isinstance(self.threads, bool) or
