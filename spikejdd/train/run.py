@@ -71,7 +71,7 @@ def train(cfg: TrainConfig | dict) -> dict:
                       f"(train loss {running:.3e})")
             if res["psnr_linear"] > st.best_psnr:
                 st.best_psnr = res["psnr_linear"]
-                tr.save("best.pt", res)
+                tr.save("best.pt", res, resumable=False)
         if main and (st.step % cfg.checkpoint_every == 0 or last):
             tr.save("last.pt")
         if last:

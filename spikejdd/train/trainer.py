@@ -286,12 +286,14 @@ class Trainer:
         sjdd = sjdd or validate_model(self.model, self.validation_frames(), self.device)
         return bench_row(self.state.step, sjdd, classical)
 
-    def save(self, name: str, eval_result: dict | None = None) -> Path:
-        """Write ``<out>/<name>``: weights, optimizer, scheduler, state, data, seed."""
+    def save(self, name: str, eval_result: dict | None = None, resumable: bool = True) -> Path:
+        """Write ``<out>/<name>``: weights, state, data, seed and — when ``resumable`` — the
+        optimizer and scheduler (``best.pt`` is written without them: a third of the size)."""
         st = self.state
-        tr = dict(st.to_dict(), optimizer=self.optimizer.state_dict(),
-                  scheduler=self.scheduler.state_dict(),
-                  train_config=json.dumps(asdict(self.cfg), default=str))
+        tr = dict(st.to_dict(), train_config=json.dumps(asdict(self.cfg), default=str))
+        if resumable:
+            tr.update(optimizer=self.optimizer.state_dict(),
+                      scheduler=self.scheduler.state_dict())
         return save_checkpoint(self.out / name, self.model, data=self.data_desc,
                                seed=self.cfg.seed,
                                eval=eval_result or (st.history[-1] if st.history else {}),

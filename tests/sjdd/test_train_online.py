@@ -175,5 +175,6 @@ def test_two_chunks_equal_one_uninterrupted_run(tmp_path):
     size = sum(p.stat().st_size for p in (tmp_path / "split").iterdir() if p.suffix != ".pt"
                or p.name == "last.pt")
     assert size < 64 * 2**20
+    assert "optimizer" not in load_checkpoint(tmp_path / "split" / "best.pt")["train"]
     run = json.loads((tmp_path / "split" / "run.json").read_text())
     assert run["config"]["online"] and run["data"]["validation"] == "sweep"
