@@ -103,6 +103,9 @@ def _train_parser(sub) -> None:
     tr.add_argument("--resume", help="checkpoint to resume from, or 'auto' (<out>/last.pt)")
     tr.add_argument("--online", action="store_true",
                     help="simulate every sample in the data loader (no --data needed)")
+    tr.add_argument("--clip", action="append", default=[], dest="clips", metavar="PATH",
+                    help="a video file or frame folder some --online samples are cut from "
+                         "(repeatable)")
     tr.add_argument("--validation", choices=("auto", "files", "sweep"),
                     help="files (--eval-data/--data) or the held-out sweep (default: sweep when "
                          "--online)")
@@ -227,6 +230,8 @@ def _train(args) -> int:
         cfg["progress"] = False
     if args.online:
         cfg["online"] = True
+    if args.clips:
+        cfg["clips"] = list(args.clips)
     if args.channels_last:
         cfg["channels_last"] = True
     if not cfg.get("data") and not cfg.get("online"):

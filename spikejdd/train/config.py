@@ -13,6 +13,7 @@ epochs.  ``lr_step`` set explicitly overrides both.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
+from pathlib import Path
 
 from spikejdd.models.sjdd import DEFAULT, LITE, PUBLISHED, SJDDConfig
 from spikesim.errors import bad_value
@@ -34,6 +35,8 @@ class TrainConfig:
 
     data: str = ""  # HDF5 file/folder; unused with online=True
     online: bool = False  # simulate every sample in the data loader (spikejdd.train.online)
+    clips: list = field(default_factory=list)  # video files/frame folders for online samples
+    clip_fraction: float = 0.25  # share of online samples cut from clips (when clips given)
     out: str = "runs/sjdd"
     eval_data: str | None = None
     validation: str = "auto"  # "files" (eval_data or data), "sweep", "auto": sweep when online
@@ -105,6 +108,11 @@ class TrainConfig:
             raise bad_value("lr_step", self.lr_step, "an integer >= 1 (or unset: 50 epochs)")
         if self.online and self.crop % 2:
             raise bad_value("crop", self.crop, "an even number of pixels with online data")
+        if not 0.0 <= self.clip_fraction <= 1.0:
+            raise bad_value("clip_fraction", self.clip_fraction, "a fraction in [0, 1]")
+        for c in self.clips:
+            if not Path(c).exists():
+                raise bad_value("clips", c, "existing video files or frame folders")
         if self.validation not in ("auto", "files", "sweep"):
             raise bad_value("validation", self.validation, "'auto', 'files' or 'sweep'")
         if self.validation_kind() == "files" and not (self.eval_data or self.data):

@@ -45,14 +45,21 @@ def draw_noise(rng: np.random.Generator) -> tuple[str, float, float]:
             float(rng.uniform(*GPN_RANGE["sigma_p"])))
 
 
-def simulate_sample(seed: int, index: int, crop: int, window: int = 39) -> dict:
+def simulate_sample(seed: int, index: int, crop: int, window: int = 39, clips=(),
+                    clip_fraction: float = 0.0) -> dict:
     """Sample ``index`` of the stream ``seed``: ``spikes`` (window, crop, crop) float32 0/1,
-    ``mask`` (4, crop, crop), ``gt`` (3, crop, crop) linear RGB and ``meta``."""
+    ``mask`` (4, crop, crop), ``gt`` (3, crop, crop) linear RGB and ``meta``.  With
+    ``clips`` (video files or frame folders), a ``clip_fraction`` of the samples come
+    from them (:mod:`spikejdd.train.clips`)."""
     import spikesim as ss
+    from spikejdd.train.clips import draw_clip
     from spikejdd.train.scenes import draw_scene
 
     rng = np.random.default_rng([int(seed), int(index)])
-    scene, desc = draw_scene(rng, (crop, crop))
+    if clips and rng.random() < clip_fraction:
+        scene, desc = draw_clip(rng, list(clips), (crop, crop))
+    else:
+        scene, desc = draw_scene(rng, (crop, crop))
     cfa = BAYER_PATTERNS[int(rng.integers(4))]
     mode, sg, sp = draw_noise(rng)
     noise = ss.noise.PaperNoise(sigma_g=sg, sigma_p=sp) if (sg or sp) else None
@@ -101,7 +108,7 @@ class OnlineSpikeDataset(IterableDataset):
 
     def __init__(self, batch_size: int, crop: int, window: int = 39, seed: int = 0,
                  start_step: int = 0, stop_step: int | None = None, rank: int = 0,
-                 world: int = 1):
+                 world: int = 1, clips=(), clip_fraction: float = 0.0):
         for name, v, lo in (("batch_size", batch_size, 1), ("crop", crop, 2),
                             ("window", window, 1), ("start_step", start_step, 0)):
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
@@ -113,11 +120,15 @@ class OnlineSpikeDataset(IterableDataset):
         self.batch_size, self.crop, self.window = batch_size, crop, window
         self.seed, self.start_step, self.stop_step = int(seed), start_step, stop_step
         self.rank, self.world = int(rank), int(world)
+        if not 0.0 <= clip_fraction <= 1.0:
+            raise bad_value("clip_fraction", clip_fraction, "a fraction in [0, 1]")
+        self.clips, self.clip_fraction = tuple(str(c) for c in clips), float(clip_fraction)
 
     def batch(self, step: int) -> dict:
         """The batch of ``step`` on this rank."""
         first = (int(step) * self.world + self.rank) * self.batch_size
-        return collate([simulate_sample(self.seed, first + j, self.crop, self.window)
+        return collate([simulate_sample(self.seed, first + j, self.crop, self.window,
+                                        self.clips, self.clip_fraction)
                         for j in range(self.batch_size)])
 
     def __iter__(self):

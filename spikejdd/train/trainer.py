@@ -157,7 +157,9 @@ class Trainer:
             self.train_ds = None
             self.steps_per_epoch = cfg.epoch_steps
             self.data_desc = {"train": "online", "generator": "spikejdd.train.online",
-                              "crop": cfg.crop, "steps_per_epoch": cfg.epoch_steps}
+                              "crop": cfg.crop, "steps_per_epoch": cfg.epoch_steps,
+                              "clips": list(cfg.clips),
+                              "clip_fraction": cfg.clip_fraction if cfg.clips else 0.0}
         else:
             from spikejdd.data import SpikeWindowDataset
 
@@ -208,7 +210,8 @@ class Trainer:
             from spikejdd.train.online import OnlineSpikeDataset
 
             ds = OnlineSpikeDataset(cfg.batch_size, cfg.crop, self.mcfg.n_readouts, cfg.seed,
-                                    start_step=st.step, rank=self.rank, world=self.world)
+                                    start_step=st.step, rank=self.rank, world=self.world,
+                                    clips=cfg.clips, clip_fraction=cfg.clip_fraction)
             yield from self._loader(ds, batch_size=None)
             return
         while True:

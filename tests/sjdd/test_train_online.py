@@ -178,3 +178,34 @@ def test_two_chunks_equal_one_uninterrupted_run(tmp_path):
     assert "optimizer" not in load_checkpoint(tmp_path / "split" / "best.pt")["train"]
     run = json.loads((tmp_path / "split" / "run.json").read_text())
     assert run["config"]["online"] and run["data"]["validation"] == "sweep"
+
+
+def test_clip_samples_are_cut_from_cached_video_key_frames(tmp_path):
+    """A frame folder becomes samples: still, slowed or sped up; its scene is cached."""
+    import imageio.v3 as iio
+
+    from spikejdd.train import clips as clips_mod
+    from spikejdd.train.clips import ClipWindow, clip_scene
+
+    rng = np.random.default_rng(0)
+    base = (rng.random((24, 32, 3)) * 255).astype(np.uint8)
+    folder = tmp_path / "clip"
+    folder.mkdir()
+    for i in range(4):
+        iio.imwrite(folder / f"{i:05d}.png", np.roll(base, i, axis=1))
+    a = simulate_sample(2, 5, 8, window=9, clips=[str(folder)], clip_fraction=1.0)
+    b = simulate_sample(2, 5, 8, window=9, clips=[str(folder)], clip_fraction=1.0)
+    assert a["meta"]["kind"] == "clip" and a["spikes"].shape == (9, 8, 8)
+    torch.testing.assert_close(a["spikes"], b["spikes"], rtol=0, atol=0)
+    assert clip_scene(str(folder)) is clips_mod._CACHE[str(folder)]  # one scene per clip
+    scene = clip_scene(str(folder))
+    still = ClipWindow(scene, (2, 3, 8, 8), 1 / scene.fps, 0.0)
+    assert still.is_static and list(still.key_times(0.0, 1.0)) == [0.0]
+    np.testing.assert_allclose(still.radiance(0.5), scene.radiance(1 / scene.fps)[2:10, 3:11])
+    fast = ClipWindow(scene, (0, 0, 8, 8), 0.0, 4.0)
+    keys = fast.key_times(0.0, 1 / scene.fps)
+    assert keys[0] == 0.0 and keys[-1] >= 1 / scene.fps
+    with pytest.raises(SpikeSimValueError, match="box"):
+        ClipWindow(scene, (20, 0, 8, 8), 0.0, 1.0)
+    with pytest.raises(SpikeSimValueError, match="clips"):
+        TrainConfig(online=True, clips=[str(tmp_path / "missing")]).validate()
