@@ -185,7 +185,8 @@ def speed_table_md(res: dict) -> str:
 
 def bench_sweep(weights: str, threads: int) -> dict:
     from spikejdd import evaluate
-    from spikejdd.models import load_checkpoint, pretrained_path
+    from spikejdd.models import load_checkpoint
+    from spikejdd.models.pretrained import resolve_weights
 
     torch.set_num_threads(threads)
     name = _sjdd_name(weights)
@@ -193,7 +194,7 @@ def bench_sweep(weights: str, threads: int) -> dict:
     result = evaluate.sweep(methods, size=(64, 96), context=41, frames_per_scene=2, repeats=3,
                             seed=0, progress=True)
     cmd = f"python benchmarks/bench_sjdd.py --weights {weights} --threads {threads}"
-    blob = load_checkpoint(pretrained_path(weights))
+    blob = load_checkpoint(resolve_weights(weights))
     result["sjdd"] = {"weights": weights, "threads": threads, "train": {
         k: blob["train"].get(k) for k in ("step",)}, "eval_during_training": blob["eval"]}
     evaluate.write_report(result, methods, RESULTS / "sjdd_sweep", command=cmd)
