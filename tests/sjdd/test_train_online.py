@@ -209,3 +209,27 @@ def test_clip_samples_are_cut_from_cached_video_key_frames(tmp_path):
         ClipWindow(scene, (20, 0, 8, 8), 0.0, 1.0)
     with pytest.raises(SpikeSimValueError, match="clips"):
         TrainConfig(online=True, clips=[str(tmp_path / "missing")]).validate()
+
+
+def test_trainer_owns_step_validate_save_and_resume(tmp_path):
+    from spikejdd.train import Trainer, TrainState
+
+    cfg = TrainConfig(online=True, model="lite", model_overrides=TINY.to_dict(), batch_size=2,
+                      crop=8, val_size=[12, 12], val_speeds=[0.0], val_levels=["GN0"],
+                      out=str(tmp_path), seed=1, progress=False)
+    tr = Trainer(cfg)
+    assert tr.lr_step == 50 * 240 and tr.state == TrainState()
+    before = {k: v.clone() for k, v in tr.model.state_dict().items()}
+    loss = tr.step(next(tr.batches()))
+    assert np.isfinite(loss) and tr.state.step == 1
+    assert any(not torch.equal(before[k], v) for k, v in tr.model.state_dict().items())
+    res = tr.validate()
+    assert res["frames"] == 6 and set(res["by_speed"]) == {"0.0"}
+    tr.state.history.append(res)
+    tr.save("last.pt")
+    other = Trainer(cfg)
+    other.resume(tmp_path / "last.pt")
+    assert other.state.step == 1 and other.state.history[-1]["frames"] == 6
+    for k, v in tr.model.state_dict().items():
+        torch.testing.assert_close(other.model.state_dict()[k], v, rtol=0, atol=0)
+    assert other.optimizer.state_dict()["state"].keys() == tr.optimizer.state_dict()["state"].keys()
