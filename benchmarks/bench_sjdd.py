@@ -11,11 +11,17 @@ Writes, under ``benchmarks/results/``:
   camera-motion sets, 64×96, 2 frames per scene, median of 3 timed calls) for
   the shipped SJDD-Net weights and the best classical pipelines;
 * ``sjdd_summary.md`` — per noise level, SJDD-Net against the best classical
-  pipeline and the acceptance check (≥ 2 dB at GN 10, GN 15 and GPN).
+  pipeline and the acceptance check (≥ 2 dB at GN 10, GN 15 and GPN);
+* ``sjdd_speed_table.{json,md}`` — speed bins × scenes at GN σ = 10: the
+  sweep's six scenes (sprites, fan, disk; astronaut pan, coffee shake,
+  chelsea zoom) static, at 150 px/s (slow: under one pixel per 39-readout
+  window), 1500 and 3000 px/s; each cell is SJDD-Net minus the best classical
+  pipeline of that cell (dB, PSNR linear), with the column means.
 
 Usage::
 
     python benchmarks/bench_sjdd.py [--weights sjdd-lite] [--threads 1] [--skip-sweep]
+        [--skip-deform] [--skip-table] [--table-size 64x96] [--table-frames 2]
 
 Machine note: a 2-core AMD EPYC VM shared with other work; times are indicative.
 """
@@ -92,23 +98,103 @@ def bench_deform(threads: int) -> dict:
     return res
 
 
-def bench_sweep(weights: str, threads: int) -> dict:
-    from spikejdd import evaluate
-    from spikejdd.models import load_checkpoint, pretrained_path, sjdd_method
+def _sjdd_name(weights: str) -> str:
+    """The registered method name of ``weights`` ("sjdd" for the shipped default)."""
+    from spikejdd.models import sjdd_method
     from spikejdd.registry import register_method
 
+    if weights == "sjdd-lite":
+        return "sjdd"
+    name = f"sjdd-{Path(weights).stem}"
+    register_method(name, lambda s, c, k, rate=0.6: sjdd_method(s, c, k, rate, weights=weights),
+                    overwrite=True)
+    return name
+
+
+#: Speed bins of the table, px/s (0 = static; 150 px/s is under one pixel per window).
+TABLE_SPEEDS = (0.0, 150.0, 1500.0, 3000.0)
+
+
+def bench_table(weights: str, threads: int, size=(64, 96), frames: int = 2) -> dict:
+    """Speed bins × scenes at GN σ = 10: SJDD-Net minus the best classical pipeline, dB."""
+    import spikesim as ss
+    from spikejdd import evaluate
+    from spikesim.scenes.procedural import procedural
+
     torch.set_num_threads(threads)
-    name = "sjdd" if weights == "sjdd-lite" else f"sjdd[{weights}]"
-    if name != "sjdd":
-        register_method(name.replace("[", "-").replace("]", ""),
-                        lambda s, c, k, rate=0.6: sjdd_method(s, c, k, rate, weights=weights),
-                        overwrite=True)
-        name = name.replace("[", "-").replace("]", "")
+    name = _sjdd_name(weights)
+    methods = CLASSICAL + [name]
+    sensor = ss.Sensor(height=size[0], width=size[1], cfa="RGGB", clock_hz=20_000.0,
+                       full_scale_rate=0.6, noise=ss.noise.PaperNoise(sigma_g=10.0, sigma_p=0.0))
+    context = 41
+    gts = [context // 2 + 10 * i for i in range(frames)]
+    all_frames = []
+    for scenes in evaluate.SWEEP_SETS.values():
+        for scene_name, motion in scenes:
+            for speed in TABLE_SPEEDS:
+                if motion is None:  # object scenes: their classes need a speed > 0
+                    scene = procedural(scene_name, size=tuple(size), speed=speed or 1e-6)
+                elif speed == 0:
+                    scene = procedural(scene_name, motion="static", size=tuple(size))
+                else:
+                    scene = procedural(scene_name, motion=motion, size=tuple(size), speed=speed)
+                label = f"{scene_name}, {motion}" if motion else scene_name
+                all_frames += evaluate.frames_from_simulation(
+                    scene, sensor, label, gts, context, seed=0,
+                    group={"scene": label, "speed_px_s": speed})
+    result = evaluate.run(all_frames, methods, repeats=1, progress=True)
+    cells: dict = {}
+    for r in result["rows"]:
+        cells.setdefault((r["scene"], r["speed_px_s"]), {}).setdefault(r["method"], []).append(
+            r["PSNR[linear]"])
+    table = {}
+    for (scene, speed), by_method in cells.items():
+        means = {m: float(np.mean(v)) for m, v in by_method.items()}
+        best = max(CLASSICAL, key=lambda m: means[m])
+        table.setdefault(scene, {})[str(speed)] = {
+            "sjdd": means[name], "best_classical": best, "classical": means[best],
+            "delta_db": means[name] - means[best]}
+    res = {"weights": weights, "method": name, "size": list(size), "frames_per_cell": frames,
+           "noise": "GN sigma_g=10", "speeds_px_s": list(TABLE_SPEEDS), "table": table,
+           "command": f"python benchmarks/bench_sjdd.py --weights {weights} --threads {threads} "
+                      f"--skip-deform --skip-sweep --table-size {size[0]}x{size[1]} "
+                      f"--table-frames {frames}"}
+    (RESULTS / "sjdd_speed_table.json").write_text(json.dumps(res, indent=1))
+    md = speed_table_md(res)
+    (RESULTS / "sjdd_speed_table.md").write_text(md)
+    print(md)
+    return res
+
+
+def speed_table_md(res: dict) -> str:
+    """Markdown of :func:`bench_table`'s result (rows: scenes; columns: speed bins)."""
+    speeds = [str(s) for s in res["speeds_px_s"]]
+    head = ["static" if float(s) == 0 else f"{float(s):g} px/s" for s in speeds]
+    lines = [f"# {res['method']} minus the best classical pipeline, GN σ = 10 (dB)", "",
+             f"`{res['command']}`; {res['size'][0]}×{res['size'][1]}, "
+             f"{res['frames_per_cell']} frame(s) per cell, PSNR linear; the best of "
+             f"{', '.join(CLASSICAL)} per cell.", "",
+             "| scene | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
+    for scene, row in res["table"].items():
+        lines.append(f"| {scene} | " + " | ".join(f"{row[s]['delta_db']:+.2f}" for s in speeds)
+                     + " |")
+    means = [np.mean([row[s]["delta_db"] for row in res["table"].values()]) for s in speeds]
+    lines.append("| **mean** | " + " | ".join(f"**{m:+.2f}**" for m in means) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def bench_sweep(weights: str, threads: int) -> dict:
+    from spikejdd import evaluate
+    from spikejdd.models import load_checkpoint
+    from spikejdd.models.pretrained import resolve_weights
+
+    torch.set_num_threads(threads)
+    name = _sjdd_name(weights)
     methods = CLASSICAL + [name]
     result = evaluate.sweep(methods, size=(64, 96), context=41, frames_per_scene=2, repeats=3,
                             seed=0, progress=True)
     cmd = f"python benchmarks/bench_sjdd.py --weights {weights} --threads {threads}"
-    blob = load_checkpoint(pretrained_path(weights))
+    blob = load_checkpoint(resolve_weights(weights))
     result["sjdd"] = {"weights": weights, "threads": threads, "train": {
         k: blob["train"].get(k) for k in ("step",)}, "eval_during_training": blob["eval"]}
     evaluate.write_report(result, methods, RESULTS / "sjdd_sweep", command=cmd)
@@ -157,12 +243,25 @@ def main(argv=None) -> int:
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--skip-sweep", action="store_true")
     p.add_argument("--skip-deform", action="store_true")
+    p.add_argument("--skip-table", action="store_true")
+    p.add_argument("--table-size", default="64x96", help="HxW of the speed table's frames")
+    p.add_argument("--table-frames", type=int, default=2, help="frames per table cell")
     args = p.parse_args(argv)
+    try:
+        size = tuple(int(v) for v in args.table_size.lower().split("x"))
+        if len(size) != 2 or min(size) < 12:
+            raise ValueError
+    except ValueError:
+        p.error(f"--table-size {args.table_size!r}: expected HxW with sides >= 12, e.g. 64x96")
+    if args.table_frames < 1:
+        p.error(f"--table-frames {args.table_frames}: expected an integer >= 1")
     RESULTS.mkdir(parents=True, exist_ok=True)
     if not args.skip_deform:
         bench_deform(args.threads)
     if not args.skip_sweep:
         bench_sweep(args.weights, args.threads)
+    if not args.skip_table:
+        bench_table(args.weights, args.threads, size, args.table_frames)
     return 0
 
 

@@ -93,7 +93,8 @@ def _train_parser(sub) -> None:
                     help="override a model field, e.g. --set stages=2 (JSON values)")
     for name, typ, default in (
             ("steps", int, 10_000), ("batch_size", int, 8), ("crop", int, 64), ("lr", float, 5e-4),
-            ("lr_step", int, 2_000), ("gamma", float, 0.8), ("noise_weight", float, 0.0),
+            ("lr_step", int, None), ("lr_step_epochs", int, 50), ("epoch_steps", int, 240),
+            ("gamma", float, 0.8), ("noise_weight", float, 0.0),
             ("eval_every", int, 500), ("eval_frames", int, 12), ("checkpoint_every", int, 500),
             ("seed", int, 0), ("workers", int, 0), ("time_limit_min", float, None),
             ("threads", int, None)):
@@ -103,6 +104,15 @@ def _train_parser(sub) -> None:
     tr.add_argument("--no-amp", action="store_true", help="no mixed precision on CUDA")
     tr.add_argument("--no-flips", action="store_true", help="no random flips")
     tr.add_argument("--resume", help="checkpoint to resume from, or 'auto' (<out>/last.pt)")
+    tr.add_argument("--online", action="store_true",
+                    help="simulate every sample in the data loader (no --data needed)")
+    tr.add_argument("--clip", action="append", default=[], dest="clips", metavar="PATH",
+                    help="a video file or frame folder some --online samples are cut from "
+                         "(repeatable)")
+    tr.add_argument("--validation", choices=("auto", "files", "sweep"),
+                    help="files (--eval-data/--data) or the held-out sweep (default: sweep when "
+                         "--online)")
+    tr.add_argument("--channels-last", action="store_true", help="channels_last memory format")
     tr.add_argument("--synthesize", type=int, metavar="N",
                     help="first write N procedural sequences into --data (when it has none)")
     tr.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -203,7 +213,7 @@ def _train(args) -> int:
     for name in ("data", "out", "eval_data", "model", "steps", "batch_size", "crop", "lr",
                  "lr_step", "gamma", "noise_weight", "eval_every", "eval_frames",
                  "checkpoint_every", "seed", "workers", "time_limit_min", "device", "resume",
-                 "threads"):
+                 "threads", "lr_step_epochs", "epoch_steps", "validation"):
         v = getattr(args, name, None)
         if v is not None:
             cfg[name] = v
@@ -225,10 +235,17 @@ def _train(args) -> int:
         cfg["flips"] = False
     if args.quiet:
         cfg["progress"] = False
-    if not cfg.get("data"):
-        print("spikejdd train: error: give --data DIR (or a --config with 'data')", file=sys.stderr)
+    if args.online:
+        cfg["online"] = True
+    if args.clips:
+        cfg["clips"] = list(args.clips)
+    if args.channels_last:
+        cfg["channels_last"] = True
+    if not cfg.get("data") and not cfg.get("online"):
+        print("spikejdd train: error: give --data DIR or --online (or a --config with 'data')",
+              file=sys.stderr)
         return 2
-    if args.synthesize:
+    if args.synthesize and cfg.get("data"):
         data = Path(cfg["data"])
         if not (data.is_dir() and any(data.glob("*.h5"))):
             synthesize(data, n_sequences=args.synthesize, progress=not args.quiet)

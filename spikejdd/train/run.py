@@ -1,0 +1,96 @@
+"""The thin ``train`` entry: build a :class:`~spikejdd.train.trainer.Trainer`, resume,
+loop over batches, validate / checkpoint / log on schedule, end each chunk with a
+validation, ``last.pt`` and a benchmark row."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+from tqdm import tqdm
+
+from spikejdd.train.config import TrainConfig
+from spikesim.errors import SpikeSimTypeError
+
+__all__ = ["train"]
+
+
+def _append(path, row: dict) -> None:
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write(json.dumps(row) + "\n")
+
+
+def train(cfg: TrainConfig | dict) -> dict:
+    """Run (or resume) a training run; returns the final summary (also in ``run.json``).
+
+    Writes under ``cfg.out``: ``run.json``, ``log.jsonl`` (one validation per
+    line), ``bench.jsonl`` (one benchmark row per chunk, sweep validation
+    only), ``last.pt`` and ``best.pt`` (highest validation PSNR).
+    """
+    from spikejdd.train.trainer import Trainer
+
+    if isinstance(cfg, dict):
+        cfg = TrainConfig.from_dict(cfg)
+    if not isinstance(cfg, TrainConfig):
+        raise SpikeSimTypeError(f"cfg must be a TrainConfig or dict, got {type(cfg).__name__}")
+    cfg.validate()
+    tr = Trainer(cfg)
+    path = tr.resume_path()
+    if path:
+        tr.resume(path)
+    out, main = tr.out, tr.main
+    if main:
+        (out / "run.json").write_text(json.dumps(tr.run_info, indent=1, default=str))
+    t_start = time.time()
+    bar = tqdm(total=cfg.steps, initial=tr.state.step, desc="train",
+               disable=not (main and cfg.progress))
+    running, seen, t_last = None, 0, time.time()
+    batches = tr.batches() if tr.state.step < cfg.steps else iter(())
+    for batch in batches:
+        lv = tr.step(batch)
+        st = tr.state
+        seen += batch["spikes"].shape[0] * tr.world
+        running = lv if running is None else 0.9 * running + 0.1 * lv
+        if main and st.step % cfg.log_every == 0:
+            now = time.time()
+            psnr = -10 * math.log10(max(running, 1e-12))
+            bar.set_postfix(loss=f"{running:.2e}", psnr=f"{psnr:.2f}",
+                            samples_s=f"{seen / max(now - t_last, 1e-9):.1f}",
+                            lr=f"{tr.scheduler.get_last_lr()[0]:.1e}")
+            seen, t_last = 0, now
+        bar.update(1)
+        last = st.step >= cfg.steps or tr.over_time(t_start)
+        if main and (st.step % cfg.eval_every == 0 or last):
+            res = tr.validate()
+            res.update(step=st.step, train_loss=running, minutes=(time.time() - t_start) / 60,
+                       lr=tr.scheduler.get_last_lr()[0])
+            st.history.append(res)
+            _append(out / "log.jsonl", res)
+            bar.write(f"step {st.step}: validation PSNR {res['psnr_linear']:.2f} dB "
+                      f"(train loss {running:.3e})")
+            if res["psnr_linear"] > st.best_psnr:
+                st.best_psnr = res["psnr_linear"]
+                tr.save("best.pt", res, resumable=False)
+        if main and (st.step % cfg.checkpoint_every == 0 or last):
+            tr.save("last.pt")
+        if last:
+            if main:
+                row = tr.bench(st.history[-1])
+                if row is not None:
+                    row["minutes"] = (time.time() - t_start) / 60
+                    _append(out / "bench.jsonl", row)
+                    bar.write(f"step {st.step}: sjdd {row['sjdd_psnr']:.2f} dB, "
+                              f"{row['best_classical']} {row['classical_psnr']:.2f} dB, "
+                              f"delta {row['delta_db']:+.2f} dB")
+            break
+    if hasattr(batches, "close"):
+        batches.close()
+    bar.close()
+    st = tr.state
+    summary = dict(tr.run_info, steps_done=st.step, best_psnr=st.best_psnr, history=st.history,
+                   minutes=(time.time() - t_start) / 60)
+    if main:
+        (out / "run.json").write_text(json.dumps(summary, indent=1, default=str))
+    tr.close()
+    return summary

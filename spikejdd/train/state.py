@@ -1,0 +1,33 @@
+"""Where a run stands (:class:`TrainState`): everything besides weights and optimizer that
+exact resume needs, stored under ``train`` in every checkpoint."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+__all__ = ["TrainState"]
+
+
+@dataclass
+class TrainState:
+    """Steps done, the epoch and steps into it (file data), the best validation PSNR (dB)
+    and the validation history (one dict per validation)."""
+
+    step: int = 0
+    epoch: int = 0
+    in_epoch: int = 0
+    best_psnr: float = -math.inf
+    history: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_checkpoint(cls, train: dict | None) -> TrainState:
+        """From a checkpoint's ``train`` entry (missing keys: a fresh run's values)."""
+        tr = train or {}
+        return cls(step=int(tr.get("step", 0)), epoch=int(tr.get("epoch", 0)),
+                   in_epoch=int(tr.get("in_epoch", 0)),
+                   best_psnr=float(tr.get("best_psnr", -math.inf)),
+                   history=list(tr.get("history", [])))
