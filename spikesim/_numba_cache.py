@@ -45,6 +45,22 @@ def sources_digest(package_dir: Path) -> str:
     return h.hexdigest()
 
 
+def compiled_in_this_process() -> bool:
+    """Whether a spikesim kernel was compiled in this process rather than loaded from
+    numba's on-disk cache (a one-off cost of the first run after an install or edit)."""
+    import sys
+
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("spikesim") or module is None:
+            continue
+        for obj in vars(module).values():
+            stats = getattr(obj, "stats", None)
+            misses = getattr(stats, "cache_misses", None)
+            if misses and sum(misses.values()):
+                return True
+    return False
+
+
 def sync_cache(package_dir: Path) -> bool:
     """Remove the numba cache files under ``package_dir`` when its sources
     changed since the last call; returns True when it removed them.  Never

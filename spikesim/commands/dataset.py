@@ -50,6 +50,10 @@ def run(args) -> int:
               f"make, {est['px_readouts']:.3g} pixel-readouts, about "
               f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s "
               f"({est['executor']}, {est['startup_seconds']:.1f} s of it start-up)")
+        if est.get("compile_seconds"):
+            print(f"(this dry run also compiled the simulation kernels, "
+                  f"{est['compile_seconds']:.0f} s: a one-off after installing or upgrading "
+                  "spikesim, not counted above)")
         return 0
     if not args.out:
         raise SpikeSimValueError("--out is required (the output folder)")

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, bad_value
+from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimValueError, bad_value
 from spikesim.io._atomic import atomic_path, is_temp_name
 from spikesim.io.h5 import Sequence, read_header
 
@@ -160,8 +160,8 @@ def resolve_dataset(path: str | os.PathLike, split: str | None = None) -> Path:
     if not splits:
         raise SpikeSimFormatError(f"{str(folder)!r} holds no spikesim sequence (*.h5) and no "
                                   "split folder of them")
-    raise bad_value("split", None, f"one of the splits found in {str(folder)!r}: {splits} "
-                    "(the folder is a dataset root; pick one with split=NAME / --split NAME)")
+    raise SpikeSimValueError(f"{str(folder)!r} is a dataset root with splits {splits}: pick one "
+                             "with --split NAME (split=NAME in Python)")
 
 
 class Dataset:

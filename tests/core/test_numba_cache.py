@@ -60,3 +60,18 @@ def test_a_user_cache_dir_is_left_alone(tmp_path, monkeypatch):
     monkeypatch.setenv("NUMBA_CACHE_DIR", os.fspath(tmp_path / "elsewhere"))
     assert not sync_cache(pkg)
     assert all(f.exists() for f in files)
+
+
+def test_a_compiled_kernel_is_told_from_a_cached_one(tmp_path, monkeypatch):
+    import subprocess
+    import sys
+
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    (tmp_path / "spikesim_probe_kernel.py").write_text(
+        "from numba import njit\n\n@njit(cache=True)\ndef twice(x):\n    return 2 * x\n")
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); import spikesim_probe_kernel as m; "
+            "from spikesim._numba_cache import compiled_in_this_process as c; "
+            "assert m.twice(3) == 6; print(c())")
+    runs = [subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True,
+                           text=True, check=True).stdout.strip() for _ in range(2)]
+    assert runs == ["True", "False"]  # compiled (cold cache), then loaded from the cache
