@@ -10,12 +10,14 @@ from __future__ import annotations
 import subprocess
 
 import pytest
-from fault_helpers import FULL, cli_command, cli_env, no_temps, run_cli, write_manifest
+from fault_helpers import FULL, cli_command, cli_env, no_temps, write_manifest
+
+from spikesim.io import verify
 
 
 @pytest.mark.parametrize("runs,workers", [(2, 1)] + ([(3, 2)] if FULL else []))
 def test_concurrent_runs_into_one_folder(tmp_path, runs, workers):
-    manifest = write_manifest(tmp_path / "m.toml", count=4, window=101, samples=4)
+    manifest = write_manifest(tmp_path / "m.toml", count=4, window=41, samples=4, size=(32, 32))
     procs = [subprocess.Popen(cli_command("spikesim", "dataset", manifest, "--out", "ds",
                                           "--workers", workers),
                               cwd=tmp_path, env=cli_env(), stdout=subprocess.PIPE,
@@ -26,5 +28,5 @@ def test_concurrent_runs_into_one_folder(tmp_path, runs, workers):
         assert "Traceback" not in err and "failed 0" in out, out[-2000:]
     assert not no_temps(tmp_path / "ds")
     assert len(list((tmp_path / "ds" / "train").glob("*.h5"))) == 4
-    verify = run_cli("spikesim", "verify", tmp_path / "ds", cwd=tmp_path)
-    assert verify.returncode == 0 and "4 of 4 file(s) ok" in verify.stdout, verify.stdout
+    reports = verify(tmp_path / "ds")
+    assert len(reports) == 4 and all(r["ok"] for r in reports), reports
