@@ -14,7 +14,7 @@ from spikesim._numba_cache import sync_cache as _sync_cache
 
 _sync_cache(_Path(__file__).parent)  # before any kernel module loads its cache
 
-from spikesim import bits, cfa, io, noise, scenes
+from spikesim import bits, cfa, io, noise, scenes, workload
 from spikesim._version import __version__
 from spikesim.errors import (
     SpikeSimError,
@@ -26,6 +26,7 @@ from spikesim.errors import (
 from spikesim.ideal import ideal_spike_times
 from spikesim.sensor import Sensor, list_presets
 from spikesim.simulate import SimulationRun, SpikeChunk, SpikeStream, simulate, simulate_chunks
+from spikesim.workload import RunawayWorkWarning
 
 __all__ = [
     "__version__",
@@ -42,6 +43,8 @@ __all__ = [
     "cfa",
     "noise",
     "scenes",
+    "workload",
+    "RunawayWorkWarning",
     "SpikeSimError",
     "SpikeSimValueError",
     "SpikeSimTypeError",

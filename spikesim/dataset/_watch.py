@@ -25,7 +25,7 @@ __all__ = ["GRACE_S", "POLL_S", "init_worker", "parent_alive"]
 #: Seconds between two checks of the parent.
 POLL_S = 0.2
 #: Seconds a worker whose parent died gets to clean up before it exits outright.
-GRACE_S = 3.0
+GRACE_S = 5.0
 
 _parent_pid: int | None = None
 _orphaned = threading.Event()
@@ -50,6 +50,11 @@ def _watch() -> None:
         os.kill(os.getpid(), signal.SIGTERM)  # interrupts the task; its temp file is removed
     finally:
         time.sleep(GRACE_S)
+        # still here (a long kernel call holds the main thread): remove the files
+        # being written and exit outright
+        from spikesim.io._atomic import discard_active_temps
+
+        discard_active_temps()
         os._exit(1)
 
 

@@ -179,6 +179,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     finally:
         bar.close()
     summary.seconds = time.perf_counter() - t0
+    _remove_stale_temps(out, splits)  # those of workers that died (os._exit, kill -9)
     for split in splits:
         if (out / split).is_dir():
             build_index(out / split)

@@ -29,6 +29,7 @@ Unknown keys, bad values and missing sources raise
 
 from __future__ import annotations
 
+import functools
 import importlib
 import os
 import re
@@ -37,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from spikesim.dataset.distributions import Distribution, parse_distribution
-from spikesim.errors import SpikeSimFileError, SpikeSimValueError, bad_value
+from spikesim.errors import SpikeSimFileError, SpikeSimTypeError, SpikeSimValueError, bad_value
 from spikesim.noise import PaperNoise, PhysicalNoise
 from spikesim.sensor import Sensor
 
@@ -438,8 +439,16 @@ def _video_sequences(kind: str, root: Path, wanted, path: str) -> tuple:
     return names
 
 
+_SCENE_PROTOCOL = ("radiance", "key_times", "height", "width", "describe")
+
+
 def resolve_factory(spec: str, path: str = "factory"):
-    """Import ``module:function`` and return the callable."""
+    """Import ``module:function`` and return it wrapped so that what it returns is checked.
+
+    The wrapper raises :class:`SpikeSimTypeError` naming the factory when the
+    result is not a scene (an object with ``radiance``, ``key_times``,
+    ``height``, ``width`` and ``describe``).
+    """
     module, _, func = spec.partition(":")
     try:
         obj = getattr(importlib.import_module(module), func)
@@ -447,7 +456,19 @@ def resolve_factory(spec: str, path: str = "factory"):
         raise bad_value(path, spec, f"an importable 'module:function' ({exc})") from None
     if not callable(obj):
         raise bad_value(path, spec, "a callable")
-    return obj
+
+    @functools.wraps(obj)
+    def checked_factory(*args, **kwargs):
+        scene = obj(*args, **kwargs)
+        missing = [a for a in _SCENE_PROTOCOL if not hasattr(scene, a)]
+        if missing:
+            raise SpikeSimTypeError(
+                f"factory {spec!r} returned {type(scene).__name__}, not a scene (missing "
+                f"{', '.join(missing)}): return e.g. spikesim.scenes.Static(image)"
+            )
+        return scene
+
+    return checked_factory
 
 
 def parse_manifest(data: dict, origin: str = "", base: Path | None = None) -> Manifest:

@@ -30,6 +30,7 @@ from spikesim.errors import SpikeSimFileError
 
 __all__ = [
     "atomic_path",
+    "discard_active_temps",
     "is_stale_temp",
     "is_temp_name",
     "lock_temp",
@@ -41,6 +42,8 @@ __all__ = [
 _TMP_MARK = ".tmp-"
 _TMP_PID = re.compile(r"\.tmp-(\d+)-[0-9a-f]+")
 _rename_guard: Callable[[Path], None] | None = None
+#: Temporaries this process is writing now (removed by :func:`discard_active_temps`).
+_active: set[Path] = set()
 
 
 def temp_name_for(final: Path) -> Path:
@@ -61,6 +64,14 @@ def set_rename_guard(guard: Callable[[Path], None] | None) -> None:
     """
     global _rename_guard
     _rename_guard = guard
+
+
+def discard_active_temps() -> None:
+    """Delete every temporary this process is writing (for a process about to exit hard)."""
+    for tmp in list(_active):
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        _active.discard(tmp)
 
 
 def lock_temp(fd: int) -> None:
@@ -159,6 +170,7 @@ def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Pa
         raise SpikeSimFileError(f"output file {str(final)!r} exists (pass overwrite=True)")
     remove_stale_temps(parent, final.name)
     tmp = temp_name_for(final)
+    _active.add(tmp)
     try:
         yield tmp
         if _rename_guard is not None:
@@ -168,3 +180,5 @@ def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Pa
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+    finally:
+        _active.discard(tmp)

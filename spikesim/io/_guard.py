@@ -75,13 +75,15 @@ class GuardedFile(io.RawIOBase):
         return self._f.readinto(buffer)
 
     def write(self, data) -> int:
-        n = memoryview(data).nbytes
+        view = memoryview(data)
+        n = view.nbytes
         if self.error is None:
             try:
-                done = 0
-                view = memoryview(data).cast("B")
-                while done < n:
-                    done += self._f.write(view[done:])
+                done = self._f.write(view)
+                if done < n:  # a short write (rare on files): finish it byte-wise
+                    view = view.cast("B")
+                    while done < n:
+                        done += self._f.write(view[done:])
                 return n
             except OSError as exc:
                 self.error = exc

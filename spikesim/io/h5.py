@@ -73,6 +73,31 @@ _CFA_NAMES = ("mono", "RGGB", "BGGR", "GRBG", "GBRG")
 _REQUIRED_ATTRS = ("format_version", "height", "width", "cfa", "clock_hz", "bitorder", "meta")
 
 
+#: Root attribute holding a SHA-256 of all the others.  HDF5 keeps more than a few
+#: attributes in a heap whose blocks carry no checksum; this one makes a changed
+#: attribute an error when the file is opened.
+DIGEST_ATTR = "attrs_sha256"
+
+
+def _plain(value):
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return [_plain(v) for v in value.tolist()]
+    return value
+
+
+def _attrs_digest(attrs) -> str:
+    """SHA-256 of the root attributes (except the digest itself) in a canonical form."""
+    import hashlib
+
+    plain = {str(k): _plain(attrs[k]) for k in attrs if k != DIGEST_ATTR}
+    text = json.dumps(plain, sort_keys=True, default=repr, allow_nan=True)
+    return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
+
+
 def _balanced(size: int, target: int) -> int:
     """Chunk extent <= ``target`` that splits ``size`` into equal parts (least edge padding)."""
     parts = -(-size // target)
@@ -163,8 +188,11 @@ class H5Writer:
         tmp = self._ctx.__enter__()
         try:
             self._guard = GuardedFile(tmp)
-            # HDF5 >= 1.8 layout: attributes of any size (dense storage), readable since 2008.
-            self._file = h5py.File(self._guard, "w", libver=("v108", "latest"))
+            # HDF5 >= 1.10 layout (readable by any HDF5 since 2016): attributes of any size, and
+            # a checksum on every metadata block, the chunk index included.  With the 1.8
+            # layout (B-tree v1 chunk index, unchecked) a flipped bit in the index made a
+            # chunk read as zeros without any error.
+            self._file = h5py.File(self._guard, "w", libver=("v110", "latest"))
             self._create()
             self._check_io()
         except OSError as exc:
@@ -287,6 +315,7 @@ class H5Writer:
         }
         if meta.get("seed") is not None:
             attrs["seed"] = int(meta["seed"])
+        attrs[DIGEST_ATTR] = _attrs_digest(attrs)
         f.attrs.update(attrs)
 
     def __exit__(self, exc_type, exc, tb) -> bool:
@@ -669,6 +698,11 @@ def _header_of(f: h5py.File, path: Path) -> dict:
                 f"{str(path)!r}: n_readouts={stated!r} ({where}) disagrees with the {n} "
                 "readouts of the spikes dataset: the file was altered or damaged"
             )
+    if DIGEST_ATTR in attrs and _attr_text(attrs[DIGEST_ATTR]) != _attrs_digest(attrs):
+        raise SpikeSimFormatError(
+            f"{str(path)!r}: its attributes do not match their checksum (damaged, or edited by "
+            "another tool): restore or regenerate the file"
+        )
     cfa = cfa_text
     meta["gt_index"] = gt_index.tolist()
     return {

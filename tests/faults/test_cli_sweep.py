@@ -112,6 +112,22 @@ def _call(main, argv) -> tuple[int, str]:
 CASES = _cases()
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _imported():
+    """Import what the commands import lazily, outside the time limit of a call: an
+    import cut short by the limit would leave a half-initialised module behind."""
+    import importlib
+
+    for name in ("torch", "spikejdd.train", "spikejdd.evaluate", "spikejdd.registry",
+                 "spikejdd.capture", "spikejdd.pipelines", "spikesim.analysis",
+                 "spikesim.dataset", "spikesim.io.preview", "spikesim.demo", "cv2", "PIL.Image",
+                 "matplotlib.pyplot"):
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            pass
+
+
 @pytest.mark.parametrize("prog,prefix,option,value", CASES,
                          ids=[f"{p}-{'-'.join(x)}-{o}={v!r}" for p, x, o, v in CASES])
 def test_bad_arguments_never_give_a_traceback(h5_original, tmp_path, monkeypatch,

@@ -1,0 +1,186 @@
+"""kill -9 and SIGTERM of writers, dataset parents and workers.
+
+Nothing partial under a final name, no orphaned process, no rename into the
+output folder after the parent has died, stale temporary files removed by the
+next run, and a worker that always dies fails only its own sequence.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+from fault_helpers import (
+    alive,
+    children_of,
+    cli_command,
+    cli_env,
+    finals,
+    full_only,
+    no_temps,
+    run_cli,
+    write_manifest,
+)
+
+from spikesim.io import verify
+
+LONG = ["astronaut", "--motion", "pan", "--size", "64x64", "--readouts", "2000000",
+        "--force", "--out"]
+
+
+def _start(prog, *args, cwd):
+    return subprocess.Popen(cli_command(prog, *args), cwd=cwd, env=cli_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(predicate, timeout=120.0, what="condition"):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def _wait_for_temp(proc, folder: Path, timeout=180.0):
+    def ready():
+        assert proc.poll() is None, proc.communicate()[1][-2000:]
+        return bool(no_temps(folder))
+    _wait_for(ready, timeout, "a temporary file")
+
+
+def test_sigterm_of_a_writer_removes_its_file_and_says_so(tmp_path):
+    proc = _start("spikesim", "simulate", *LONG, "x.h5", cwd=tmp_path)
+    _wait_for_temp(proc, tmp_path)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err[-2000:]
+    assert "stopped by SIGTERM" in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())
+
+
+def test_kill9_of_a_writer_leaves_a_temp_that_the_next_write_removes(tmp_path):
+    proc = _start("spikesim", "simulate", *LONG, "x.h5", cwd=tmp_path)
+    _wait_for_temp(proc, tmp_path)
+    proc.kill()
+    proc.wait(timeout=30)
+    assert no_temps(tmp_path) and not (tmp_path / "x.h5").exists()  # nothing final
+    done = run_cli("spikesim", "simulate", "astronaut", "--size", "8x8", "--readouts", "20",
+                   "--out", "x.h5", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert not no_temps(tmp_path) and (tmp_path / "x.h5").is_file()
+    assert all(r["ok"] for r in verify(tmp_path / "x.h5"))
+
+
+def _dataset(tmp_path, count=6, readouts=(601, 6)):
+    manifest = write_manifest(tmp_path / "m.toml", count=count, window=readouts[0],
+                              samples=readouts[1], size=(96, 96))
+    return _start("spikesim", "dataset", manifest, "--out", "ds", "--workers", "2",
+                  cwd=tmp_path)
+
+
+def test_kill9_of_the_dataset_parent_leaves_no_orphan_and_no_late_rename(tmp_path):
+    proc = _dataset(tmp_path)
+    _wait_for_temp(proc, tmp_path / "ds", timeout=240)
+    kids = children_of(proc.pid)  # pool workers and multiprocessing's resource tracker
+    assert len(kids) >= 2, kids
+    proc.kill()
+    proc.wait(timeout=30)
+    at_death = finals(tmp_path / "ds")
+    _wait_for(lambda: not any(alive(k) for k in kids), timeout=30, what="orphans to exit")
+    assert finals(tmp_path / "ds") == at_death  # nothing renamed into place after the parent
+    assert not no_temps(tmp_path / "ds"), no_temps(tmp_path / "ds")  # workers cleaned up
+    if at_death:
+        assert all(r["ok"] for r in verify(tmp_path / "ds"))
+
+
+@full_only
+def test_sigterm_of_the_dataset_parent_stops_workers_and_records(tmp_path):
+    proc = _dataset(tmp_path)
+    _wait_for_temp(proc, tmp_path / "ds", timeout=240)
+    kids = children_of(proc.pid)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=90)
+    assert proc.returncode == 143 and "stopped by SIGTERM" in err, err[-2000:]
+    assert "Traceback" not in err
+    _wait_for(lambda: not any(alive(k) for k in kids), timeout=30, what="workers to exit")
+    summary = json.loads((tmp_path / "ds" / "build_summary.json").read_text())
+    assert "interrupted" in summary["executor"]
+    assert not no_temps(tmp_path / "ds")
+
+
+FACTORY = textwrap.dedent(
+    """
+    import os
+    import multiprocessing
+    import numpy as np
+    from spikesim.scenes import Static
+
+    class Dies(Static):
+        def radiance(self, t):
+            if multiprocessing.parent_process() is not None:  # never the test process
+                os._exit(3)
+            return super().radiance(t)
+
+    def make(index, size, seed):
+        img = np.full(tuple(size) + (3,), 0.1 + 0.1 * index, np.float32)
+        return Dies(img) if index == 1 else Static(img)
+    """
+)
+
+
+def test_a_worker_that_always_dies_fails_only_its_own_sequence(tmp_path, monkeypatch):
+    from spikesim.dataset import build_dataset, parse_manifest
+    from spikesim.io import open_dataset
+
+    (tmp_path / "dies_factory.py").write_text(FACTORY)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "dies_factory", raising=False)
+    m = parse_manifest({
+        "dataset": {"name": "d", "seed": 1, "size": [16, 24], "window": 9,
+                    "samples_per_sequence": 2},
+        "sensor": {"preset": "ideal"},
+        "noise": [{"mode": "none", "label": "clean"}],
+        "sources": [{"kind": "python", "factory": "dies_factory:make", "count": 4,
+                     "split": "inj"}],
+    })
+    out = tmp_path / "out"
+    s = build_dataset(m, out, workers=2, progress=False)
+    assert s.failed == 1 and s.done == 3, [r["error"] for r in s.failures]
+    failed = s.failures[0]
+    assert failed["id"].endswith("1") or "1" in failed["file"], failed
+    assert "died" in failed["error"]
+    assert not (out / failed["file"]).exists() and not no_temps(out)
+    assert len(open_dataset(out / "inj")) == 3
+    assert os.path.exists(out / "build_summary.json")
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+def test_parent_watch_module_exits_an_orphan(tmp_path):
+    """Unit check of the parent watch: a process whose parent dies exits within seconds."""
+    script = textwrap.dedent(
+        """
+        import os, subprocess, sys, time
+        # the middle process starts a grandchild that runs the watch, then dies
+        code = ("import os, time\\n"
+                "from spikesim.dataset._watch import init_worker\\n"
+                "init_worker(os.getppid())\\n"
+                "print(os.getpid(), flush=True)\\n"
+                "time.sleep(60)\\n")
+        child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                                 text=True)
+        print(child.stdout.readline().strip(), flush=True)
+        os._exit(0)
+        """
+    )
+    mid = subprocess.run([sys.executable, "-c", script], env=cli_env(), capture_output=True,
+                         text=True, timeout=120)
+    pid = int(mid.stdout.strip().splitlines()[-1])
+    _wait_for(lambda: not alive(pid), timeout=15, what="the orphan to exit")
