@@ -20,7 +20,7 @@ import shlex
 import sys
 
 from spikesim._validate import check_cli_numbers
-from spikesim.cli_guard import debug_requested, run_guarded
+from spikesim.cli_guard import OneLineParser, debug_requested, run_guarded
 from spikesim.errors import bad_value
 
 __all__ = ["main", "build_parser"]
@@ -35,7 +35,7 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="spikejdd", description="Spike-camera JDD reconstruction.")
+    p = OneLineParser(prog="spikejdd", description="Spike-camera JDD reconstruction.")
     p.add_argument("--debug", action="store_true",
                    help="show Python tracebacks instead of one-line errors (anywhere on the "
                         "line; or set SPIKESIM_DEBUG=1)")

@@ -14,7 +14,7 @@ import sys
 
 from spikesim._validate import check_cli_numbers
 from spikesim._version import __version__
-from spikesim.cli_guard import debug_requested, run_guarded
+from spikesim.cli_guard import OneLineParser, debug_requested, run_guarded
 
 #: Modules under spikesim.commands, in the order their commands are listed.
 COMMAND_MODULES = (
@@ -37,7 +37,7 @@ EXIT_ERROR = 1
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="spikesim", description="Bayer spike-camera simulator (spikesim)."
     )
     parser.add_argument("--version", action="version", version=f"spikesim {__version__}")

@@ -34,13 +34,22 @@ from collections.abc import Callable
 
 from spikesim.errors import SpikeSimError
 
-__all__ = ["Terminated", "debug_requested", "install_signal_handlers", "run_guarded"]
+__all__ = ["OneLineParser", "Terminated", "debug_requested", "install_signal_handlers",
+           "run_guarded"]
 
 EXIT_ERROR = 1
 EXIT_BUG = 70
 EXIT_INTERRUPTED = 130
 EXIT_PIPE = 141
 EXIT_TERMINATED = 143
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (exit 2), pointing to ``--help``
+    instead of printing the whole usage block."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 class Terminated(BaseException):  # noqa: N818 - a signal, not an error

@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from spikesim.errors import SpikeSimError, SpikeSimFileError
+from spikesim.errors import SpikeSimError, SpikeSimFileError, SpikeSimFormatError
 
 __all__ = ["verify", "verify_file"]
 
@@ -48,7 +48,9 @@ def _verify_h5(path: Path) -> dict:
     return report
 
 
-def _verify_dat(path: Path) -> dict:
+def _verify_dat(path: Path, height: int | None = None, width: int | None = None) -> dict:
+    """Length check of a ``.dat``: whole frames of ``height`` x ``width`` (guessed from the
+    size when not given; a size that fits no known sensor is unchecked, not damaged)."""
     from spikesim.io.dat import guess_dat_shape
 
     report = {"path": str(path), "kind": "dat", "ok": True, "problems": [],
@@ -57,24 +59,42 @@ def _verify_dat(path: Path) -> dict:
         size = path.stat().st_size
         if size == 0:
             raise SpikeSimFileError(f"{str(path)!r} is empty (0 bytes)")
-        h, w, _ = guess_dat_shape(size, path)
-        report["readouts"] = size // ((h * w + 7) // 8)
+        if height is None or width is None:
+            try:
+                height, width, _ = guess_dat_shape(size, path)
+            except SpikeSimError:
+                report["notes"] = ["frame size unknown: pass --height and --width to check "
+                                   "the length"]
+                report["unchecked"] = True
+                return report
+            report["notes"].append(f"frame size guessed as {height}x{width} (HxW); pass "
+                                   "--height and --width if it is another")
+        frame = (height * width + 7) // 8
+        if size % frame:
+            raise SpikeSimFormatError(
+                f"{str(path)!r} is not a whole number of {height}x{width} frames ({size} bytes, "
+                f"{frame} per frame): truncated, or another frame size")
+        report["readouts"] = size // frame
     except (SpikeSimError, OSError) as exc:
         report["ok"] = False
         report["problems"].append(str(exc))
     return report
 
 
-def verify_file(path: str | os.PathLike) -> dict:
-    """Check one ``.h5`` or ``.dat`` file; returns ``{"path", "ok", "problems", "notes", ...}``."""
+def verify_file(path: str | os.PathLike, height: int | None = None,
+                width: int | None = None) -> dict:
+    """Check one ``.h5`` or ``.dat`` file (``height``/``width``: the frame size of a
+    ``.dat``); returns ``{"path", "ok", "problems", "notes", ...}``."""
     path = Path(path)
     if path.suffix.lower() == ".dat":
-        return _verify_dat(path)
+        return _verify_dat(path, height, width)
     return _verify_h5(path)
 
 
-def verify(path: str | os.PathLike) -> list[dict]:
-    """Check a file, or every ``.h5``/``.hdf5``/``.dat`` file under a folder.
+def verify(path: str | os.PathLike, height: int | None = None,
+           width: int | None = None) -> list[dict]:
+    """Check a file, or every ``.h5``/``.hdf5``/``.dat`` file under a folder
+    (``height``/``width``: the frame size of ``.dat`` files, guessed when not given).
 
     Stale temporary files (left by killed writers) appear as reports with
     ``kind="temp"`` and ``ok=True`` (they never sit under a final name; the
@@ -86,7 +106,7 @@ def verify(path: str | os.PathLike) -> list[dict]:
     if not path.exists():
         raise SpikeSimFileError(f"no such file or folder: {str(path)!r}")
     if path.is_file():
-        return [verify_file(path)]
+        return [verify_file(path, height, width)]
     reports = []
     for p in sorted(path.rglob("*")):
         if not p.is_file():
@@ -98,7 +118,7 @@ def verify(path: str | os.PathLike) -> list[dict]:
                                           "the next write into this folder)"]})
             continue
         if p.suffix.lower() in (".h5", ".hdf5", ".dat"):
-            reports.append(verify_file(p))
+            reports.append(verify_file(p, height, width))
     if not reports:
         raise SpikeSimFileError(f"{str(path)!r} holds no .h5, .hdf5 or .dat file")
     return reports

@@ -175,3 +175,29 @@ def test_errors_are_spikesim_errors_in_the_library(h5):
     with pytest.raises(SpikeSimError):
         open_h5(h5).read_gt(99)
     json.dumps(ss.io.verify(h5))  # reports are JSON-able
+
+
+# --- found by a user trial after the suite --------------------------------------------------
+
+@pytest.mark.parametrize("prog, argv", [
+    ("spikesim", ["simulate", "astronaut", "--readouts", "abc", "--out", "x.h5"]),
+    ("spikesim", ["info"]),
+    ("spikejdd", ["reconstruct"]),
+])
+def test_usage_errors_are_one_line(prog, argv):
+    code, err, _ = _main(prog, argv)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--help" in err, err
+
+
+def test_verify_checks_dat_lengths_at_the_given_size(tmp_path):
+    spikes = np.zeros((10, 64, 64), np.uint8)
+    ss.io.write_dat(tmp_path / "a.dat", spikes)
+    whole = (tmp_path / "a.dat").read_bytes()
+    (tmp_path / "t.dat").write_bytes(whole[:-100])
+    assert _main("spikesim", ["verify", tmp_path / "a.dat", "--height", 64, "--width", 64])[0] == 0
+    code, _, out = _main("spikesim", ["verify", tmp_path / "t.dat", "--height", 64,
+                                      "--width", 64])
+    assert code == 1 and "DAMAGED" in out and "64x64" in out  # truncated, at the size given
+    code, _, out = _main("spikesim", ["verify", tmp_path / "a.dat"])  # 64x64 is no known size
+    assert code == 0 and "--height" in out
+    _fails("spikesim", ["verify", tmp_path / "a.dat", "--height", 64], "--width")
