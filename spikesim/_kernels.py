@@ -58,6 +58,18 @@ from spikesim.rng import (
 BLOCK = 64  # pixels per block: one uint64 spike mask = 8 packed bytes
 TWO64 = 2.0**64
 FAST_Q_LIMIT = 1.0 - 2.0**-20  # fast path only when every charge is safely < 1 θ
+#: Largest whole part of one readout's charge (thresholds).  A float64 charge
+#: ≥ 2⁵² has no fractional part, so clamping it here changes no spike in modulo
+#: or zero reset (every larger charge fires and leaves fraction 0); infinite
+#: charges (radiance × rate beyond float64) clamp here too.
+Q_WHOLE_MAX = 2.0**53
+#: Largest backlog of subtract reset (thresholds): the accumulator saturates
+#: here, so ``whole + charge + carry`` never overflows int64 (2⁶² + 2⁵³ + 1 < 2⁶³).
+#: A pixel holding it fires at every readout for 2⁶² readouts after the light stops.
+WHOLE_MAX = 2**62
+#: Largest mean electron count given to the shot-noise sampler; a pixel there
+#: holds ≥ 2⁶²/E thresholds per readout and fires at every readout anyway.
+LAMBDA_MAX = 2.0**62
 
 RESET_MODULO = 0
 RESET_SUBTRACT = 1
@@ -77,9 +89,11 @@ _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
 @njit(inline="always", **_opts)
 def _to_fixed(q):
-    """Split a non-negative charge (thresholds) into (whole int64, fraction uint64)."""
-    w = np.floor(q)
-    return np.int64(w), np.uint64((q - w) * TWO64)
+    """Split a non-negative charge (thresholds) into (whole int64, fraction uint64);
+    charges ≥ :data:`Q_WHOLE_MAX` (infinity included) saturate there, fraction 0."""
+    qc = min(q, Q_WHOLE_MAX)
+    w = np.floor(qc)
+    return np.int64(w), np.uint64((qc - w) * TWO64)
 
 
 @njit(**_opts)
@@ -208,7 +222,7 @@ def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf, work):
     n_small = 0
     small_max = 0.0
     for lane in range(BLOCK):
-        lam = ibuf[lane] * electrons[lane]
+        lam = min(ibuf[lane] * electrons[lane], LAMBDA_MAX)
         lam_v[lane] = lam
         bbuf[lane] = pixel_bits(rkey, pix0 + np.uint64(lane))
         small = lam < _POISSON_INVERSION_MAX
@@ -446,7 +460,7 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
     for lane in range(BLOCK):
         qw, qf = _to_fixed(ibuf[lane])
         s = frac[lane] + qf
-        w = whole[lane] + qw + (1 if s < frac[lane] else 0)
+        w = min(whole[lane] + qw + (1 if s < frac[lane] else 0), WHOLE_MAX)
         fire = w >= 1
         if reset == RESET_SUBTRACT:
             w = w - 1 if fire else w
