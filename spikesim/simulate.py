@@ -170,6 +170,7 @@ class SimulationRun:
         self.progress = bool(progress)
         idx = channel_index(sensor.cfa, 2, 2)
         self._tile = np.full((2, 2), -1, np.int64) if idx is None else idx.astype(np.int64)
+        self._checked: np.ndarray | None = None  # a read-only radiance array known valid
         self.meta = {
             "sensor": sensor.to_dict(),
             "scene": scene.describe(),
@@ -205,6 +206,9 @@ class SimulationRun:
             rad = np.ascontiguousarray(rad)
         if _mosaic.mosaic_into(rad, self._tile, LUMA_WEIGHTS, out, k) > 0:
             validate_radiance(rad, name)  # raises with the offending value
+        if (rad.dtype == np.float32 and not rad.flags.writeable
+                and rad.base is None and rad.flags.owndata):
+            self._checked = rad  # read-only and valid (a static scene's image)
 
     def _chunk_keys(self, n0: int, max_keys: int) -> tuple[int, np.ndarray, np.ndarray]:
         """End of the chunk starting at readout ``n0``, its key times (s) and the
@@ -244,7 +248,11 @@ class SimulationRun:
         gt = np.zeros((len(sel), self.sensor.height, self.sensor.width, 3), np.float32)
         for i, g in enumerate(sel.tolist()):
             t = (g + 0.5) / clock
-            gt[i] = validate_radiance(self.scene.radiance(t), f"scene.radiance(t={t:.6g})")
+            rad = self.scene.radiance(t)
+            if rad is self._checked:  # the read-only frame the key frames just checked
+                gt[i] = rad
+            else:
+                gt[i] = validate_radiance(rad, f"scene.radiance(t={t:.6g})")
         return gt, sel.copy()
 
     def __iter__(self) -> Iterator[SpikeChunk]:
