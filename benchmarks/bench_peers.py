@@ -131,6 +131,7 @@ def main(argv=None) -> int:
         "mean_rate": {"spikesim": float(ours), "spikezoo": float(theirs)},
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs "
                    "(shared with other jobs: compare ratios, not absolute times)",
+        "load_average_1min_after": os.getloadavg()[0],
     }
     rows = [
         "| simulator | median time (s) | pixel-readouts/s | spikes per readout |",
@@ -142,7 +143,9 @@ def main(argv=None) -> int:
     lo, hi = result["speedup_range"]
     table = "\n".join(rows) + (
         f"\n\nspikesim / Spike-Zoo speed ratio: median {result['speedup_median']:.0f}× "
-        f"(range {lo:.0f}–{hi:.0f}× over {args.pairs} alternating pairs), {result['scene']}.\n")
+        f"(range {lo:.0f}–{hi:.0f}× over {args.pairs} alternating pairs), {result['scene']}; "
+        f"load average {result['load_average_1min_after']:.1f} on {os.cpu_count()} CPUs "
+        "(other jobs running).\n")
     print(table)
     if not args.quick:
         RESULTS.mkdir(exist_ok=True)
