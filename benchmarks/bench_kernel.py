@@ -200,6 +200,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
     ap.add_argument("--out", default=str(RESULTS), help="results folder")
+    ap.add_argument("--rss-readouts", type=int, default=None,
+                    help="readouts of the peak-RSS streaming step (default 40000; 2000 quick)")
     args = ap.parse_args(argv)
     size = 256 if args.quick else 1000
     n_fast, n_noisy, n_phys, n_ref = (256, 64, 32, 4) if args.quick else (8192, 2048, 256, 12)
@@ -228,7 +230,7 @@ def main(argv=None):
     draws = {"hashes": time_draws(size, n_noisy, False),
              "normal deviates": time_draws(size, n_noisy, True)}
     print(json.dumps({"draws_only_per_s": draws}), flush=True)
-    n_long = 2000 if args.quick else 40_000
+    n_long = args.rss_readouts or (2000 if args.quick else 40_000)
     rss = {name: peak_rss_mib(size, n_long, name) for name in ("off", "paper GN σ=10")}
     result = {
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores "
