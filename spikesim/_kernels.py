@@ -30,10 +30,13 @@ Model (DESIGN.md §2; Dong et al., AAAI 2024, eq. 1):
 
 Work is split in blocks of 64 pixels of one row (8 packed bytes) run in
 parallel; time is the inner loop of each block so its state stays in
-registers/L1.  Fast paths with modulo reset, taken per run and block where
-every charge is provably < 1 threshold, are one 64-lane vector step per
+registers/L1.  Fast paths, taken per run and block where every whole part
+is 0 and every charge is provably < 1 threshold (there the three reset modes
+reduce to the carry, cleared for zero reset), are one 64-lane vector step per
 readout (``spikesim._simd``): an integer add for static segments, the exact
 linear charge for moving ones, and the noisy charge for paper-mode noise.
+Charges too large for the fixed point saturate (:data:`Q_WHOLE_MAX`,
+:data:`WHOLE_MAX`), so any finite input fires at every readout.
 """
 
 from __future__ import annotations
