@@ -126,6 +126,54 @@ def time_draws(size, n, deviates, repeats=3):
     return size * size * n / best
 
 
+def _time_call(scene, sensor, n):
+    t0 = time.perf_counter()
+    ss.simulate(scene, sensor, n, gt_readouts=[])
+    return time.perf_counter() - t0
+
+
+def _median_range(values):
+    v = sorted(values)
+    return {"median": v[len(v) // 2], "min": v[0], "max": v[-1]}
+
+
+def reset_and_call_size(size, n_long, repeats=3):
+    """Same-run ratios (median and range over ``repeats`` alternating rounds):
+    subtract and zero reset against modulo (noise off, static and moving
+    scene, ``n_long`` readouts); a 1-readout call against a 400-readout call
+    (static, noise off, whole ``simulate`` calls, RGGB and mono); mono's
+    400-readout time against RGGB's (≥ 1 means mono is at least as fast)."""
+    out = {}
+    for kind in ("static", "moving"):
+        sensors = {r: ss.Sensor(height=size, width=size, cfa="RGGB", reset=r)
+                   for r in ("modulo", "subtract", "zero")}
+        scene = make_scene(kind, size, n_long, sensors["modulo"].clock_hz)
+        for sensor in sensors.values():
+            ss.simulate(scene, sensor, 32, gt_readouts=[])  # compile / warm
+        ratios = {"subtract": [], "zero": []}
+        for _ in range(repeats):
+            t = {r: _time_call(scene, sensor, n_long) for r, sensor in sensors.items()}
+            for r in ratios:
+                ratios[r].append(t["modulo"] / t[r])
+        out[f"{kind}: throughput / modulo's"] = {r: _median_range(v) for r, v in ratios.items()}
+    scene = make_scene("static", size, 400, 20_000.0)
+    sensors = {c or "mono": ss.Sensor(height=size, width=size, cfa=c) for c in ("RGGB", None)}
+    for sensor in sensors.values():
+        ss.simulate(scene, sensor, 32, gt_readouts=[])
+    one = {k: [] for k in sensors}
+    mono_vs_rggb = []
+    for _ in range(repeats):
+        t400 = {}
+        for k, sensor in sensors.items():
+            t1 = _time_call(scene, sensor, 1)
+            t400[k] = _time_call(scene, sensor, 400)
+            one[k].append(t1 / t400[k])
+        mono_vs_rggb.append(t400["RGGB"] / t400["mono"])
+    out["1-readout call / 400-readout call"] = {k: _median_range(v) for k, v in one.items()}
+    out["mono throughput / RGGB's (400 readouts)"] = _median_range(mono_vs_rggb)
+    return out
+
+
 def time_reference(scene, sensor, n, seed=0):
     t0 = time.perf_counter()
     packed = reference_simulate(scene, sensor, n, seed=seed)
@@ -152,6 +200,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
     ap.add_argument("--out", default=str(RESULTS), help="results folder")
+    ap.add_argument("--rss-readouts", type=int, default=None,
+                    help="readouts of the peak-RSS streaming step (default 40000; 2000 quick)")
     args = ap.parse_args(argv)
     size = 256 if args.quick else 1000
     n_fast, n_noisy, n_phys, n_ref = (256, 64, 32, 4) if args.quick else (8192, 2048, 256, 12)
@@ -175,10 +225,12 @@ def main(argv=None):
                 row["bit_identical"] = bool(np.array_equal(first[:n_ref], ref))
             rows.append(row)
             print(json.dumps(row), flush=True)
+    ratios = reset_and_call_size(size, 256 if args.quick else 2048)
+    print(json.dumps({"same_run_ratios": ratios}), flush=True)
     draws = {"hashes": time_draws(size, n_noisy, False),
              "normal deviates": time_draws(size, n_noisy, True)}
     print(json.dumps({"draws_only_per_s": draws}), flush=True)
-    n_long = 2000 if args.quick else 40_000
+    n_long = args.rss_readouts or (2000 if args.quick else 40_000)
     rss = {name: peak_rss_mib(size, n_long, name) for name in ("off", "paper GN σ=10")}
     result = {
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores "
@@ -188,6 +240,7 @@ def main(argv=None):
         "cfa": "RGGB",
         "rows": rows,
         "draws_only_per_s": draws,
+        "same_run_ratios": ratios,
         "peak_rss_mib_streaming": {"readouts": n_long, **rss},
         "command": "python benchmarks/bench_kernel.py" + (" --quick" if args.quick else ""),
     }
@@ -254,6 +307,14 @@ def to_markdown(r) -> str:
         )
     m = r["peak_rss_mib_streaming"]
     d = r["draws_only_per_s"]
+    lines += ["", "Same-run ratios (median, range over 3 alternating rounds; the machine is shared",
+              "with other jobs, so absolute times move and only these ratios compare):", "",
+              "| comparison | case | median | range |", "|---|---|---:|---|"]
+    for what, cases in r.get("same_run_ratios", {}).items():
+        items = cases.items() if "median" not in cases else [("", cases)]
+        for case, v in items:
+            lines.append(f"| {what} | {case} | {v['median']:.3f} | "
+                         f"{v['min']:.3f}–{v['max']:.3f} |")
     lines += [
         "",
         "Random numbers alone, same size and threads (no simulation: the draws of a paper-noise",

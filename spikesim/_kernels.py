@@ -30,10 +30,13 @@ Model (DESIGN.md §2; Dong et al., AAAI 2024, eq. 1):
 
 Work is split in blocks of 64 pixels of one row (8 packed bytes) run in
 parallel; time is the inner loop of each block so its state stays in
-registers/L1.  Fast paths with modulo reset, taken per run and block where
-every charge is provably < 1 threshold, are one 64-lane vector step per
+registers/L1.  Fast paths, taken per run and block where every whole part
+is 0 and every charge is provably < 1 threshold (there the three reset modes
+reduce to the carry, cleared for zero reset), are one 64-lane vector step per
 readout (``spikesim._simd``): an integer add for static segments, the exact
 linear charge for moving ones, and the noisy charge for paper-mode noise.
+Charges too large for the fixed point saturate (:data:`Q_WHOLE_MAX`,
+:data:`WHOLE_MAX`), so any finite input fires at every readout.
 """
 
 from __future__ import annotations
@@ -43,7 +46,14 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from spikesim._simd import carry_add64, linear_carry_add64, paper_carry_add64
+from spikesim._simd import (
+    carry_add64,
+    carry_add64_zero,
+    linear_carry_add64,
+    linear_carry_add64_zero,
+    paper_carry_add64,
+    paper_carry_add64_zero,
+)
 from spikesim.rng import (
     NORMAL_ABS_MAX,
     exp_nonpositive,
@@ -58,6 +68,19 @@ from spikesim.rng import (
 BLOCK = 64  # pixels per block: one uint64 spike mask = 8 packed bytes
 TWO64 = 2.0**64
 FAST_Q_LIMIT = 1.0 - 2.0**-20  # fast path only when every charge is safely < 1 θ
+#: Largest whole part of one readout's charge (thresholds).  A float64 charge
+#: ≥ 2⁵² has no fractional part, so clamping it here changes no spike in modulo
+#: or zero reset (every larger charge fires and leaves fraction 0); infinite
+#: charges (radiance × rate beyond float64) clamp here too.
+Q_WHOLE_MAX = 2.0**53
+#: Largest backlog of subtract reset (thresholds): the accumulator saturates
+#: here, so ``whole + charge + carry`` never overflows int64 (2⁶² + 2⁵³ + 1 < 2⁶³).
+#: A pixel holding it fires at every readout for 2⁶² readouts after the light stops.
+WHOLE_MAX = 2**62
+#: Largest mean electron count given to the shot-noise sampler; a pixel there
+#: holds ≥ 2⁶²/E thresholds per readout and fires at every readout anyway.
+LAMBDA_MAX = 2.0**62
+_FRAC_MAX = TWO64 - 2048.0  # the largest float64 below 2⁶⁴
 
 RESET_MODULO = 0
 RESET_SUBTRACT = 1
@@ -77,9 +100,13 @@ _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
 @njit(inline="always", **_opts)
 def _to_fixed(q):
-    """Split a non-negative charge (thresholds) into (whole int64, fraction uint64)."""
-    w = np.floor(q)
-    return np.int64(w), np.uint64((q - w) * TWO64)
+    """Split a non-negative charge (thresholds) into (whole int64, fraction uint64);
+    charges ≥ :data:`Q_WHOLE_MAX` (infinity included) saturate there, fraction 0."""
+    qc = min(q, Q_WHOLE_MAX)
+    w = np.floor(qc)
+    # q − ⌊q⌋ < 1 exactly for q ≥ 0 (so ≤ _FRAC_MAX); a tiny negative charge
+    # (charge noise) may round to 1.0 and is kept just below it
+    return np.int64(w), np.uint64(min((qc - w) * TWO64, _FRAC_MAX))
 
 
 @njit(**_opts)
@@ -208,7 +235,7 @@ def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf, work):
     n_small = 0
     small_max = 0.0
     for lane in range(BLOCK):
-        lam = ibuf[lane] * electrons[lane]
+        lam = min(ibuf[lane] * electrons[lane], LAMBDA_MAX)
         lam_v[lane] = lam
         bbuf[lane] = pixel_bits(rkey, pix0 + np.uint64(lane))
         small = lam < _POISSON_INVERSION_MAX
@@ -325,35 +352,47 @@ def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, 
 
 
 @njit(inline="always", **_opts)
-def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, f):
-    """Modulo reset, constant charge < 1 θ: a 64-lane integer add whose carry
-    bits are the spikes (:func:`spikesim._simd.carry_add64`).
+def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, f, zero):
+    """Constant charge < 1 θ, empty whole part: a 64-lane integer add whose
+    carry bits are the spikes (:func:`spikesim._simd.carry_add64`; with
+    ``zero`` reset the carrying lanes are cleared).  Modulo and subtract reset
+    are the same step here (the whole part stays 0).
 
     Works on scratch copies of the state (``qf``, ``f``, contiguous).
     """
     for lane in range(BLOCK):
         qf[lane] = np.uint64(qconst[lane] * TWO64)
         f[lane] = frac[lane]
-    for n in range(n0, n1):
-        out[n - t_off, y, blk] = carry_add64(f, qf, 0)
+    if zero:
+        for n in range(n0, n1):
+            out[n - t_off, y, blk] = carry_add64_zero(f, qf, 0)
+    else:
+        for n in range(n0, n1):
+            out[n - t_off, y, blk] = carry_add64(f, qf, 0)
     for lane in range(BLOCK):
         frac[lane] = f[lane]
 
 
 @njit(inline="always", **_opts)
 def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
-                 f, g, o):
-    """Modulo reset, no per-readout noise, charge < 1 θ, linear radiance: one
-    vector step per readout (:func:`spikesim._simd.linear_carry_add64`).
+                 f, g, o, zero):
+    """No per-readout noise, charge < 1 θ, empty whole part, linear radiance:
+    one vector step per readout (:func:`spikesim._simd.linear_carry_add64`,
+    or its ``_zero`` twin for zero reset).
     ``ia``, ``di`` are contiguous already; ``f, g, o`` are contiguous scratch
     copies of the state, gain and offset."""
     for lane in range(BLOCK):
         f[lane] = frac[lane]
         g[lane] = gain[lane]
         o[lane] = offset[lane]
-    for n in range(n0, n1):
-        phi = (np.float64(n) + 0.5 - t_a) * inv_span
-        out[n - t_off, y, blk] = linear_carry_add64(f, ia, di, g, o, phi, 0)
+    if zero:
+        for n in range(n0, n1):
+            phi = (np.float64(n) + 0.5 - t_a) * inv_span
+            out[n - t_off, y, blk] = linear_carry_add64_zero(f, ia, di, g, o, phi, 0)
+    else:
+        for n in range(n0, n1):
+            phi = (np.float64(n) + 0.5 - t_a) * inv_span
+            out[n - t_off, y, blk] = linear_carry_add64(f, ia, di, g, o, phi, 0)
     for lane in range(BLOCK):
         frac[lane] = f[lane]
 
@@ -377,8 +416,8 @@ def _paper_fits(n0, n1, t_a, inv_span, ia, di, gain, offset, paper_sg2, paper_sp
 
 @njit(**_opts)  # a call per run: inlined, it slowed the noise-free paths (code layout)
 def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
-                paper_sg2, paper_sp2, key_paper, pkeys, level, z, sd, bits, f, g, o):
-    """Modulo reset, paper-mode noise only, every noisy charge < 1 θ
+                paper_sg2, paper_sp2, key_paper, pkeys, level, z, sd, bits, f, g, o, zero):
+    """Paper-mode noise only, every noisy charge < 1 θ, empty whole part
     (:func:`_paper_fits`): per readout the block's normal deviates
     (:func:`spikesim.rng.normals_into`) and one vector step
     (:func:`spikesim._simd.paper_carry_add64`), the same values as
@@ -406,7 +445,10 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
             for lane in range(BLOCK):
                 sd[lane] = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * level[lane]) * (1.0 / 255.0)
         normals_into(readout_key(key_paper, n), pkeys, z, bits)
-        out[n - t_off, y, blk] = paper_carry_add64(f, level, z, sd, g, o, 0)
+        if zero:
+            out[n - t_off, y, blk] = paper_carry_add64_zero(f, level, z, sd, g, o, 0)
+        else:
+            out[n - t_off, y, blk] = paper_carry_add64(f, level, z, sd, g, o, 0)
     for lane in range(BLOCK):
         frac[lane] = f[lane]
 
@@ -414,7 +456,7 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
 @njit(inline="always", **_opts)
 def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
                   paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf, bbuf,
-                  pkeys, shot_work):
+                  pkeys, shot_work, charge_sd, key_charge):
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
@@ -442,11 +484,15 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
     if electrons[0] >= 0.0:
         _shot_noise_block(ibuf, electrons, readout_key(key_shot, n), pix0, zbuf, bbuf,
                           shot_work)
+    if charge_sd[0] >= 0.0:  # accumulating charge noise (−1: off; padding lanes 0)
+        normals_into(readout_key(key_charge, n), pkeys, zbuf, bbuf)
+        for lane in range(BLOCK):
+            ibuf[lane] += charge_sd[lane] * zbuf[lane]
     m = np.uint64(0)
     for lane in range(BLOCK):
         qw, qf = _to_fixed(ibuf[lane])
         s = frac[lane] + qf
-        w = whole[lane] + qw + (1 if s < frac[lane] else 0)
+        w = min(whole[lane] + qw + (1 if s < frac[lane] else 0), WHOLE_MAX)
         fire = w >= 1
         if reset == RESET_SUBTRACT:
             w = w - 1 if fire else w
@@ -479,13 +525,15 @@ def _block_runs(frames, y, x0, width, t_off,
                 piece_a, piece_b, piece_len, piece_phi,
                 gain, offset, electrons, frac, whole, out, reset, fast_ok, paper_fast_ok,
                 paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
-                scratch_f, scratch_u):
+                charge_sd, key_charge, scratch_f, scratch_u):
     """All runs of one chunk for one 64-pixel block and one accumulator set.
 
     ``scratch_f`` (12, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
     caller's work rows (allocated once per image row, not per block).
-    ``fast_ok``: modulo reset without per-readout noise; ``paper_fast_ok``:
-    modulo reset with paper-mode noise only.
+    ``fast_ok``: no per-readout noise; ``paper_fast_ok``: paper-mode noise
+    only.  Either path is taken for a run only where every lane's whole part
+    is 0 and every charge < 1 θ, where the three reset modes reduce to a
+    carry (modulo and subtract: keep the fraction; zero: clear it).
     """
     ia = scratch_f[0]
     di = scratch_f[1]
@@ -500,7 +548,8 @@ def _block_runs(frames, y, x0, width, t_off,
     bbuf = scratch_u[2]
     pkeys = scratch_u[3]
     blk = x0 // BLOCK
-    if paper_sg2 > 0.0 or paper_sp2 > 0.0 or jitter > 0.0:
+    zero = reset == RESET_ZERO
+    if paper_sg2 > 0.0 or paper_sp2 > 0.0 or jitter > 0.0 or charge_sd[0] >= 0.0:
         pixel_keys_into(np.uint64(y * width + x0), pkeys)
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]
@@ -510,13 +559,20 @@ def _block_runs(frames, y, x0, width, t_off,
                              piece_phi, y, x0, ibuf)
             m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                               reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                              key_jitter, zbuf, bbuf, pkeys, shot_work)
+                              key_jitter, zbuf, bbuf, pkeys, shot_work, charge_sd, key_charge)
             out[n0 - t_off, y, blk] = m
             continue
         t_a = run_ta[r]
         inv = run_inv[r]
         _segment_radiance(frames, run_a[r], run_b[r], y, x0, ia, di)
-        use_fast = fast_ok
+        if fast_ok or paper_fast_ok:
+            empty = 0
+            for lane in range(BLOCK):
+                empty += 1 if whole[lane] == 0 else 0
+            fits = empty == BLOCK
+        else:
+            fits = False
+        use_fast = fast_ok and fits
         static = True
         if use_fast:
             # branch-free counts, so this check vectorises like the step itself
@@ -535,15 +591,15 @@ def _block_runs(frames, y, x0, width, t_off,
         if use_fast and static:
             for lane in range(BLOCK):
                 ibuf[lane] = gain[lane] * (ia[lane] + di[lane] * 0.0) + offset[lane]
-            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, s_u1, s_u2)
+            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, s_u1, s_u2, zero)
         elif use_fast:
             _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
-                         s_u1, s_g, s_o)
-        elif paper_fast_ok and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset,
+                         s_u1, s_g, s_o, zero)
+        elif paper_fast_ok and fits and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset,
                                            paper_sg2, paper_sp2):
             _fast_paper(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
                         paper_sg2, paper_sp2, key_paper, pkeys, ibuf, zbuf, sdbuf, bbuf,
-                        s_u1, s_g, s_o)
+                        s_u1, s_g, s_o, zero)
         else:
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
@@ -551,8 +607,27 @@ def _block_runs(frames, y, x0, width, t_off,
                     ibuf[lane] = ia[lane] + di[lane] * phi
                 m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                                   reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                                  key_jitter, zbuf, bbuf, pkeys, shot_work)
+                                  key_jitter, zbuf, bbuf, pkeys, shot_work, charge_sd,
+                                  key_charge)
                 out[n - t_off, y, blk] = m
+
+
+@njit(inline="always", **_opts)
+def _load_state(frac, whole, y, x0, f, w):
+    """Copy a block's accumulator into contiguous ``f, w`` (explicit loops: a
+    slice assignment costs about a microsecond per block, which a 1-readout call
+    of a 1000×1000 sensor pays 32,000 times)."""
+    for lane in range(BLOCK):
+        f[lane] = frac[y, x0 + lane]
+        w[lane] = whole[y, x0 + lane]
+
+
+@njit(inline="always", **_opts)
+def _store_state(frac, whole, y, x0, f, w):
+    """The inverse of :func:`_load_state`."""
+    for lane in range(BLOCK):
+        frac[y, x0 + lane] = f[lane]
+        whole[y, x0 + lane] = w[lane]
 
 
 @njit(parallel=True, **_opts)
@@ -561,7 +636,8 @@ def simulate_chunk(frames, width, t_off,
                    piece_a, piece_b, piece_len, piece_phi,
                    gain, offset, electrons, frac, whole, out, reset, fast_ok, paper_fast_ok,
                    paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
-                   clean, c_frac, c_whole, c_out, c_gain, c_offset, c_electrons):
+                   clean, c_frac, c_whole, c_out, c_gain, c_offset, c_electrons,
+                   charge_sd, key_charge, init, init_key):
     """Simulate readouts ``[run_start[0], run_stop[-1])`` for every pixel.
 
     ``frames`` (H, Wp/64, K', 64) float32 hold the sensor-channel radiances at
@@ -569,11 +645,17 @@ def simulate_chunk(frames, width, t_off,
     x % 64]``; K' ≥ K, padding lanes zero, ``Wp`` a multiple of 64): the key
     frames of one block are contiguous, so a block streams through them.
     ``gain``, ``offset`` (H, Wp) float64 and ``electrons`` (H, Wp) float64
-    (all −1 when shot noise is off) are the per-pixel charge constants;
+    (all −1 when shot noise is off) are the per-pixel charge constants; each
+    may instead be a single row (1, Wp) shared by every row (a uniform
+    sensor: no per-call array of H·Wp to build).  ``charge_sd`` likewise: the
+    per-readout charge noise s.d. (thresholds; padding lanes 0), −1 when off.
     ``frac`` (H, Wp) uint64 and ``whole`` (H, Wp) int64 the accumulator,
-    updated in place.  ``fast_ok`` / ``paper_fast_ok`` allow the vector fast
-    paths (modulo reset without per-readout noise / with paper-mode noise
-    only), taken per run and block where every charge is provably < 1 θ.
+    updated in place; with ``init`` ≥ 0 they are first initialised here
+    (their content on entry is ignored): ``init`` = 1 a uniform fraction in
+    [0, 1) θ from ``init_key`` (:func:`init_state`'s bits), 0 zero.
+    ``fast_ok`` / ``paper_fast_ok`` allow the vector fast paths (no
+    per-readout noise / paper-mode noise only), taken per run and block where
+    every whole part is 0 and every charge is provably < 1 θ.
     ``out`` (T, H, Wp/64) uint64 receives the spikes of
     readout ``n`` at ``out[n − t_off]``: bit k of word j is pixel 64·j + k,
     which on a little-endian machine is exactly the little-bit-order packed
@@ -587,114 +669,62 @@ def simulate_chunk(frames, width, t_off,
         scratch_u = np.empty((4, BLOCK), np.uint64)
         f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
         w = np.empty(BLOCK, np.int64)
+        # a single row (1, Wp) is shared by every row (min() would mistype in prange)
+        gy = y * np.int64(gain.shape[0] > 1)
+        oy = y * np.int64(offset.shape[0] > 1)
+        ey = y * np.int64(electrons.shape[0] > 1)
+        cgy = y * np.int64(c_gain.shape[0] > 1)
+        coy = y * np.int64(c_offset.shape[0] > 1)
+        cey = y * np.int64(c_electrons.shape[0] > 1)
+        csy = y * np.int64(charge_sd.shape[0] > 1)
+        if init >= 0:
+            _init_row(frac[y], whole[y], init_key, y, width, init == 1)
+            if clean:
+                for x in range(frac.shape[1]):
+                    c_frac[y, x] = frac[y, x]
+                    c_whole[y, x] = whole[y, x]
         for b in range(nblk):
             x0 = b * BLOCK
             sl = slice(x0, x0 + BLOCK)
-            f[:] = frac[y, sl]
-            w[:] = whole[y, sl]
+            _load_state(frac, whole, y, x0, f, w)
             _block_runs(frames, y, x0, width, t_off,
                         run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
                         run_p1, piece_a, piece_b, piece_len, piece_phi,
-                        gain[y, sl], offset[y, sl], electrons[y, sl], f, w, out, reset, fast_ok,
+                        gain[gy, sl], offset[oy, sl], electrons[ey, sl], f, w, out, reset,
+                        fast_ok,
                         paper_fast_ok, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                        key_jitter, scratch_f, scratch_u)
-            frac[y, sl] = f
-            whole[y, sl] = w
+                        key_jitter, charge_sd[csy, sl], key_charge, scratch_f, scratch_u)
+            _store_state(frac, whole, y, x0, f, w)
             if clean:
-                f[:] = c_frac[y, sl]
-                w[:] = c_whole[y, sl]
+                _load_state(c_frac, c_whole, y, x0, f, w)
                 _block_runs(frames, y, x0, width, t_off,
                             run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv,
                             run_p0, run_p1, piece_a, piece_b, piece_len, piece_phi,
-                            c_gain[y, sl], c_offset[y, sl], c_electrons[y, sl], f, w, c_out,
-                            reset, reset == RESET_MODULO, False, 0.0, 0.0, np.uint64(0),
+                            c_gain[cgy, sl], c_offset[coy, sl], c_electrons[cey, sl], f, w,
+                            c_out, reset, True, False, 0.0, 0.0, np.uint64(0),
                             np.uint64(0),
-                            0.0, np.uint64(0), scratch_f, scratch_u)
-                c_frac[y, sl] = f
-                c_whole[y, sl] = w
+                            0.0, np.uint64(0), c_electrons[cey, sl], np.uint64(0),
+                            scratch_f, scratch_u)
+                _store_state(c_frac, c_whole, y, x0, f, w)
+
+
+@njit(inline="always", **_opts)
+def _init_row(frac_row, whole_row, key, y, width, uniform_init):
+    """Initial accumulator of row ``y``: fraction ``pixel_bits(readout_key(key,
+    0), y·W + x)`` (uniform in [0, 1) θ) or zero, whole part 0; padding lanes 0."""
+    rk = readout_key(key, 0)
+    base = np.uint64(y * width)
+    for x in range(frac_row.shape[0]):
+        bits = pixel_bits(rk, base + np.uint64(x))
+        frac_row[x] = bits if uniform_init and x < width else np.uint64(0)
+        whole_row[x] = 0
 
 
 @njit(parallel=True, **_opts)
 def init_state(key, height, width, padded, uniform_init):
-    """Initial accumulator: uniform fraction in [0, 1) θ per pixel, or zero."""
-    frac = np.zeros((height, padded), np.uint64)
-    if uniform_init:
-        for y in prange(height):
-            rk = readout_key(key, 0)
-            for x in range(width):
-                frac[y, x] = pixel_bits(rk, y * width + x)
+    """Initial accumulator: uniform fraction in [0, 1) θ per pixel, or zero
+    (the values :func:`simulate_chunk` writes with ``init`` ≥ 0)."""
+    frac = np.empty((height, padded), np.uint64)
+    for y in prange(height):
+        _init_row(frac[y], np.empty(padded, np.int64), key, y, width, uniform_init)
     return frac
-
-
-@njit(cache=True, nogil=True)
-def splat_flow(flow, select, scale, sign, wsum, vsum):  # pragma: no cover - compiled
-    """Bilinear forward splatting of motion vectors (used by ``spikesim.motion``).
-
-    Pixel ``(y, x)`` with ``select`` true moves to ``(x, y) + scale · flow`` and
-    deposits the vector ``sign · flow`` there with bilinear weights.
-    """
-    h, w = select.shape
-    for y in range(h):
-        for x in range(w):
-            if not select[y, x]:
-                continue
-            fx, fy = flow[y, x, 0], flow[y, x, 1]
-            px, py = x + scale * fx, y + scale * fy
-            x0, y0 = int(np.floor(px)), int(np.floor(py))
-            ax, ay = px - x0, py - y0
-            for dy in range(2):
-                yi = y0 + dy
-                if yi < 0 or yi >= h:
-                    continue
-                wy = ay if dy else 1.0 - ay
-                for dx in range(2):
-                    xi = x0 + dx
-                    if xi < 0 or xi >= w:
-                        continue
-                    wt = wy * (ax if dx else 1.0 - ax)
-                    if wt <= 0.0:
-                        continue
-                    wsum[yi, xi] += wt
-                    vsum[yi, xi, 0] += wt * sign * fx
-                    vsum[yi, xi, 1] += wt * sign * fy
-
-
-@njit(parallel=True, **_opts)
-def mosaic_into(rgb, tile, luma, out, k):
-    """Sample (H, W, 3) radiance through the CFA into key ``k`` of ``out``
-    (the blocked key-frame layout of :func:`simulate_chunk`) in one pass.
-
-    ``rgb`` must be C-contiguous (each row is read as one flat run of 3·W
-    values, which keeps both loops vectorised).  ``tile`` (2, 2) int64 holds
-    the channel of each Bayer phase, or −1 for a monochrome sensor (which sees
-    ``luma``-weighted RGB, summed in float64).  Padding lanes are not written.
-    Returns the number of values that are NaN, infinite or negative (0 means
-    the input is valid); the caller raises on any.
-    """
-    h = rgb.shape[0]
-    w = rgb.shape[1]
-    flat = rgb.reshape(h, 3 * w)
-    bad = 0
-    for y in prange(h):
-        row = flat[y]
-        row_bad = 0
-        for i in range(3 * w):
-            v = row[i]
-            ok = (v >= 0.0) & (v * 0.0 == 0.0)  # v·0 is NaN for NaN and ±inf
-            row_bad += 0 if ok else 1
-        mono = tile[0, 0] < 0
-        c0 = tile[y & 1, 0]
-        dc = tile[y & 1, 1] - c0
-        for b in range((w + BLOCK - 1) // BLOCK):
-            x0 = b * BLOCK
-            dst = out[y, b, k]
-            for lane in range(min(BLOCK, w - x0)):
-                x = x0 + lane
-                if mono:
-                    dst[lane] = np.float32(luma[0] * np.float64(row[3 * x])
-                                           + luma[1] * np.float64(row[3 * x + 1])
-                                           + luma[2] * np.float64(row[3 * x + 2]))
-                else:
-                    dst[lane] = row[3 * x + c0 + (x & 1) * dc]
-        bad += row_bad
-    return bad

@@ -45,7 +45,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from spikesim._kernels import splat_flow
+from spikesim._flow_splat import splat_flow
 from spikesim.errors import SpikeSimValueError, bad_value
 
 __all__ = [

@@ -36,7 +36,11 @@ from spikesim import rng
 from spikesim._validate import is_real
 from spikesim.errors import bad_value
 
-__all__ = ["PaperNoise", "PhysicalNoise", "noise_from_dict", "FixedPattern", "fixed_pattern"]
+__all__ = ["PaperNoise", "PhysicalNoise", "noise_from_dict", "FixedPattern", "fixed_pattern",
+           "NO_NOISE_PARAMS"]
+
+#: The kernel's noise parameters of an ideal sensor (see ``kernel_params``).
+NO_NOISE_PARAMS = {"paper_sg2": 0.0, "paper_sp2": 0.0, "paper_only": False, "jitter": 0.0}
 
 
 def _check_nonneg(name: str, value: float, upper: float = math.inf) -> float:
@@ -84,6 +88,14 @@ class PaperNoise(_NoiseBase):
         """True when the model draws a random number per pixel and readout."""
         return self.sigma_g > 0 or self.sigma_p > 0
 
+    def kernel_params(self) -> dict:
+        """This model's scalar inputs of the kernel: eq. 5 variances in DN²
+        (``paper_sg2 = σ_g²``, ``paper_sp2 = σ_p²``), ``paper_only`` (its vector
+        fast path applies), no comparator jitter.  Per-pixel inputs come from
+        :func:`fixed_pattern`."""
+        return {"paper_sg2": self.sigma_g**2, "paper_sp2": self.sigma_p**2, "paper_only": True,
+                "jitter": 0.0}
+
     def variance_dn(self, y_dn):
         """Noise variance (DN²) at latent intensity ``y_dn`` (DN), eq. 5."""
         return self.sigma_g**2 + self.sigma_p**2 * np.asarray(y_dn, dtype=np.float64)
@@ -119,6 +131,14 @@ class PhysicalNoise(_NoiseBase):
         Fraction of pixels that are hot (0..1).
     hot_pixel_dark_rel : float
         Extra dark current of a hot pixel, as a fraction of full scale.
+    charge_noise_electrons : float
+        Standard deviation (e⁻) of a Gaussian charge added to every readout's
+        integrated charge, independent between readouts (temporal noise that
+        accumulates with integration time, e.g. leakage and reset noise): over
+        a cycle of ``m`` readouts it adds ``m·σ²`` to the charge variance, so
+        the interval CV grows with the interval length,
+        ``CV² = κ² + m·(σ/E)²`` (:mod:`spikesim.analysis.theory`).  The
+        accumulator may dip below the reset level.  Default 0 (off).
     fpn_seed : int
         Seed of the chip's fixed patterns (independent of the simulation seed).
     """
@@ -133,6 +153,7 @@ class PhysicalNoise(_NoiseBase):
     hot_pixel_fraction: float = 1e-4
     hot_pixel_dark_rel: float = 0.2
     fpn_seed: int = 0
+    charge_noise_electrons: float = 0.0
     kind = "physical"
 
     def __post_init__(self):
@@ -151,6 +172,7 @@ class PhysicalNoise(_NoiseBase):
             ("temporal_threshold_noise", 0.1),
             ("hot_pixel_fraction", 1.0),
             ("hot_pixel_dark_rel", 1e6),
+            ("charge_noise_electrons", 1e9),
         ):
             object.__setattr__(self, name, _check_nonneg(name, getattr(self, name), upper))
         if not isinstance(self.fpn_seed, (int, np.integer)) or self.fpn_seed < 0:
@@ -159,7 +181,15 @@ class PhysicalNoise(_NoiseBase):
 
     @property
     def per_readout(self) -> bool:
-        return self.shot_noise or self.temporal_threshold_noise > 0
+        return (self.shot_noise or self.temporal_threshold_noise > 0
+                or self.charge_noise_electrons > 0)
+
+    def kernel_params(self) -> dict:
+        """This model's scalar inputs of the kernel: ``jitter`` = σ_t (relative
+        threshold s.d. per firing cycle); no paper-mode terms.  Shot noise and
+        charge noise are per pixel (:func:`fixed_pattern`)."""
+        return {"paper_sg2": 0.0, "paper_sp2": 0.0, "paper_only": False,
+                "jitter": self.temporal_threshold_noise}
 
     @property
     def has_fixed_pattern(self) -> bool:
@@ -196,12 +226,14 @@ class FixedPattern:
     The deterministic charge of one readout is ``gain · Ī + offset`` thresholds,
     where ``Ī`` is the mean radiance of the readout (relative units).
     ``electrons`` is the number of electrons in the pixel's threshold (for
-    shot noise), or ``None`` when shot noise is off.
+    shot noise), or ``None`` when shot noise is off; ``charge_sd`` the s.d.
+    of the per-readout charge noise in the pixel's thresholds, or ``None``.
     """
 
     gain: np.ndarray  # (H, W) float64, thresholds per readout at radiance 1
     offset: np.ndarray  # (H, W) float64, thresholds per readout (dark current)
     electrons: np.ndarray | None  # (H, W) float64 e⁻ per threshold
+    charge_sd: np.ndarray | None = None  # (H, W) float64 thresholds per readout
 
 
 def fixed_pattern(noise, height: int, width: int, full_scale_rate: float) -> FixedPattern:
@@ -238,4 +270,8 @@ def fixed_pattern(noise, height: int, width: int, full_scale_rate: float) -> Fix
     gain = (r * g / t_rel).reshape(shape)
     offset = (r * dark / t_rel).reshape(shape)
     electrons = (noise.electrons_per_threshold * t_rel).reshape(shape) if noise.shot_noise else None
-    return FixedPattern(gain, offset, electrons)
+    charge_sd = None
+    if noise.charge_noise_electrons > 0:
+        charge_sd = (noise.charge_noise_electrons
+                     / (noise.electrons_per_threshold * t_rel)).reshape(shape)
+    return FixedPattern(gain, offset, electrons, charge_sd)

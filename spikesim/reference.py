@@ -7,9 +7,10 @@ check the kernel bit for bit and to serve as the vectorised-NumPy baseline of
 ``benchmarks/bench_kernel.py``.  Loops over readouts; vectorised over pixels.
 
 Supported: every reset mode, CFA, key-frame layout, fixed patterns, paper
-(eq. 5) noise and the temporal threshold noise of physical mode (after each
+(eq. 5) noise, the temporal threshold noise of physical mode (after each
 firing the next threshold is θ(1 + ε), ε = σ_t·z clipped to ±½, i.e. the
-charge moves by −ε).  Not supported: Poisson shot noise, whose kernel
+charge moves by −ε) and its accumulating charge noise (``charge_sd·z`` added
+to every readout's charge).  Not supported: Poisson shot noise, whose kernel
 implementation is checked statistically and lane by lane against the scalar
 sampler.
 
@@ -170,6 +171,7 @@ def reference_simulate(scene, sensor, n_readouts: int, seed: int = 0) -> np.ndar
         raise ValueError("the reference does not support Poisson shot noise")
     jitter = noise.temporal_threshold_noise if isinstance(noise, PhysicalNoise) else 0.0
     key_jitter = rng.stream_key(seed, rng.STREAM_JITTER)
+    key_charge = rng.stream_key(seed, rng.STREAM_CHARGE)
     pattern = fixed_pattern(noise, h, w, sensor.full_scale_rate)
     n_pix = h * w
     if sensor.init == "uniform":
@@ -185,7 +187,11 @@ def reference_simulate(scene, sensor, n_readouts: int, seed: int = 0) -> np.ndar
             z = normal_np(_pixel_bits_np(_readout_key_np(key_paper, n), n_pix)).reshape(h, w)
             sd = np.sqrt(noise.sigma_g**2 + noise.sigma_p**2 * 255.0 * level) / 255.0
             level = np.maximum(level + sd * z, 0.0)
-        acc = acc + (pattern.gain * level + pattern.offset)
+        q = pattern.gain * level + pattern.offset
+        if pattern.charge_sd is not None:  # accumulating charge noise, after the mean charge
+            z = normal_np(_pixel_bits_np(_readout_key_np(key_charge, n), n_pix)).reshape(h, w)
+            q = q + pattern.charge_sd * z
+        acc = acc + q
         spike = acc >= 1.0
         out[n] = spike
         if sensor.reset == "modulo":

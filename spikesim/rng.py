@@ -46,6 +46,7 @@ __all__ = [
     "STREAM_PAPER",
     "STREAM_SHOT",
     "STREAM_JITTER",
+    "STREAM_CHARGE",
     "STREAM_FPN_THRESHOLD",
     "STREAM_FPN_GAIN",
     "STREAM_FPN_DARK",
@@ -80,6 +81,7 @@ STREAM_INIT = 1
 STREAM_PAPER = 2
 STREAM_SHOT = 3
 STREAM_JITTER = 4
+STREAM_CHARGE = 5
 STREAM_FPN_THRESHOLD = 16
 STREAM_FPN_GAIN = 17
 STREAM_FPN_DARK = 18
@@ -153,8 +155,15 @@ def mix64(z):
 def stream_key(seed: int, stream: int) -> np.uint64:
     """64-bit key of one noise source for one seed (Python-level helper)."""
     seed = int(seed) & MASK64
-    k = int(mix64(np.uint64((seed + G1) & MASK64)))
-    return np.uint64(int(mix64(np.uint64((k + (int(stream) * G2)) & MASK64))))
+    k = _mix64_int((seed + G1) & MASK64)
+    return np.uint64(_mix64_int((k + int(stream) * G2) & MASK64))
+
+
+def _mix64_int(z: int) -> int:
+    """:func:`mix64` on a Python int (no compiled-call overhead for the few keys of a call)."""
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK64
+    return z ^ (z >> 31)
 
 
 @njit(cache=True, inline="always", error_model="numpy")

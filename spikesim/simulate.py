@@ -16,12 +16,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from spikesim import _kernels, rng
+from spikesim import _kernels, _mosaic, rng
 from spikesim._version import __version__
 from spikesim.bits import packed_width, unpack
 from spikesim.cfa import LUMA_WEIGHTS, channel_index
 from spikesim.errors import SpikeSimTypeError, bad_value
-from spikesim.noise import PaperNoise, PhysicalNoise, fixed_pattern
+from spikesim.noise import NO_NOISE_PARAMS, PhysicalNoise, fixed_pattern
 from spikesim.scenes.static import validate_radiance
 from spikesim.schedule import build_schedule, key_readout_times
 from spikesim.sensor import Sensor
@@ -172,6 +172,7 @@ class SimulationRun:
         self.progress = bool(progress)
         idx = channel_index(sensor.cfa, 2, 2)
         self._tile = np.full((2, 2), -1, np.int64) if idx is None else idx.astype(np.int64)
+        self._checked: np.ndarray | None = None  # a read-only radiance array known valid
         self.meta = {
             "sensor": sensor.to_dict(),
             "scene": scene.describe(),
@@ -205,107 +206,98 @@ class SimulationRun:
                                 f"({self.sensor.height}, {self.sensor.width}, 3)")
         if not rad.flags.c_contiguous:
             rad = np.ascontiguousarray(rad)
-        if _kernels.mosaic_into(rad, self._tile, LUMA_WEIGHTS, out, k) > 0:
+        if _mosaic.mosaic_into(rad, self._tile, LUMA_WEIGHTS, out, k) > 0:
             validate_radiance(rad, name)  # raises with the offending value
+        if (rad.dtype == np.float32 and not rad.flags.writeable
+                and rad.base is None and rad.flags.owndata):
+            self._checked = rad  # read-only and valid (a static scene's image)
 
-    def _padded(self, arr: np.ndarray, fill: float, dtype) -> np.ndarray:
-        h, w = arr.shape
-        wp = _padded_width(w)
-        out = np.full((h, wp), fill, dtype=dtype)
-        out[:, :w] = arr
-        return out
+    def _chunk_keys(self, n0: int, max_keys: int) -> tuple[int, np.ndarray, np.ndarray]:
+        """End of the chunk starting at readout ``n0``, its key times (s) and the
+        same in readouts; the chunk is halved until its key frames fit ``max_keys``."""
+        clock = self.sensor.clock_hz
+        n1 = min(self.n_readouts, n0 + self.chunk_readouts)
+        while True:
+            times = np.asarray(self.scene.key_times(n0 / clock, n1 / clock), np.float64)
+            tau = key_readout_times(times, clock)
+            if len(tau) <= max_keys or n1 - n0 <= 1:
+                return n1, times, tau
+            n1 = n0 + max(1, (n1 - n0) // 2)
+
+    def _fill_key_frames(self, times: np.ndarray, buffer: np.ndarray, cache: dict,
+                         max_keys: int) -> tuple[np.ndarray, dict]:
+        """The chunk's key frames through the CFA into ``buffer`` (grown if
+        needed); a frame shared with the previous chunk comes from ``cache``.
+        Returns the buffer and the cache for the next chunk (its last frame)."""
+        h, wp = self.sensor.height, _padded_width(self.sensor.width)
+        if buffer.shape[2] < len(times):
+            # reused by later chunks (no new page faults), with a little room for
+            # a chunk with more keys; padding lanes stay 0 (never written)
+            room = max(len(times), min(max_keys, len(times) + len(times) // 4 + 1))
+            buffer = np.zeros((h, wp // 64, room, 64), np.float32)
+        for i, t in enumerate(times.tolist()):
+            if t in cache:
+                buffer[:, :, i] = cache[t]
+            else:
+                self._sensor_frame_into(t, buffer, i)
+        # the next chunk starts at this chunk's last key frame
+        return buffer, {times[-1].item(): buffer[:, :, len(times) - 1].copy()}
+
+    def _ground_truth(self, n0: int, n1: int) -> tuple[np.ndarray, np.ndarray]:
+        """Ground-truth radiance (K, H, W, 3) at the requested readouts in ``[n0, n1)``."""
+        clock = self.sensor.clock_hz
+        sel = self.gt_readouts[(self.gt_readouts >= n0) & (self.gt_readouts < n1)]
+        gt = np.zeros((len(sel), self.sensor.height, self.sensor.width, 3), np.float32)
+        for i, g in enumerate(sel.tolist()):
+            t = (g + 0.5) / clock
+            rad = self.scene.radiance(t)
+            if rad is self._checked:  # the read-only frame the key frames just checked
+                gt[i] = rad
+            else:
+                gt[i] = validate_radiance(rad, f"scene.radiance(t={t:.6g})")
+        return gt, sel.copy()
 
     def __iter__(self) -> Iterator[SpikeChunk]:
         sensor = self.sensor
         h, w = sensor.shape
         wp = _padded_width(w)
         nbytes = packed_width(w)
-        noise = sensor.noise
-        clock = sensor.clock_hz
-
-        pattern = fixed_pattern(noise, h, w, sensor.full_scale_rate)
-        gain = self._padded(pattern.gain, 0.0, np.float64)
-        offset = self._padded(pattern.offset, 0.0, np.float64)
-        if pattern.electrons is not None:
-            electrons = self._padded(pattern.electrons, 1.0, np.float64)
-        else:
-            electrons = np.full((h, wp), -1.0)
-        sg2 = sp2 = jitter = 0.0
-        if isinstance(noise, PaperNoise):
-            sg2, sp2 = noise.sigma_g**2, noise.sigma_p**2
-        if isinstance(noise, PhysicalNoise):
-            jitter = noise.temporal_threshold_noise
-        per_readout = noise is not None and noise.per_readout
-        reset = _RESET_CODES[sensor.reset]
-        fast_ok = reset == _kernels.RESET_MODULO and not per_readout
-        paper_fast_ok = (reset == _kernels.RESET_MODULO and isinstance(noise, PaperNoise)
-                         and pattern.electrons is None and jitter == 0.0)
-
-        key = lambda stream: rng.stream_key(self.seed, stream)  # noqa: E731
-        frac = _kernels.init_state(key(rng.STREAM_INIT), h, w, wp, sensor.init == "uniform")
-        whole = np.zeros((h, wp), np.int64)
-        if self.clean_twin:
-            c_frac, c_whole = frac.copy(), whole.copy()
-            c_gain = self._padded(np.full((h, w), sensor.full_scale_rate), 0.0, np.float64)
-            c_offset = np.zeros((h, wp))
-            c_electrons = np.full((h, wp), -1.0)
-        else:
-            c_frac = np.zeros((1, 64), np.uint64)
-            c_whole = np.zeros((1, 64), np.int64)
-            c_gain = c_offset = c_electrons = np.zeros((1, 64))
+        noisy = _KernelInputs.build(sensor, self.seed, sensor.noise)
+        clean = (_KernelInputs.build(sensor, self.seed, None) if self.clean_twin
+                 else _KernelInputs.unused())
         dummy_out = np.zeros((1, 1, 1), np.uint64)
-
-        cache: dict[float, np.ndarray] = {}
+        init = 1 if sensor.init == "uniform" else 0  # the kernel's first call initialises
         bar = None
         if self.progress:
             from tqdm.auto import tqdm
 
             bar = tqdm(total=self.n_readouts, unit="readout", desc="simulate")
-        frame_bytes = h * wp * 4
-        max_keys = max(2, CHUNK_KEYFRAME_BYTES // frame_bytes)
+        max_keys = max(2, CHUNK_KEYFRAME_BYTES // (h * wp * 4))
         key_buffer = np.zeros((h, wp // 64, 0, 64), np.float32)
+        cache: dict[float, np.ndarray] = {}
         buffers = _RecycledOutput()
         try:
             n0 = 0
             while n0 < self.n_readouts:
-                n1 = min(self.n_readouts, n0 + self.chunk_readouts)
-                times = np.asarray(self.scene.key_times(n0 / clock, n1 / clock), np.float64)
-                tau = key_readout_times(times, clock)
-                while len(tau) > max_keys and n1 - n0 > 1:
-                    n1 = n0 + max(1, (n1 - n0) // 2)
-                    times = np.asarray(self.scene.key_times(n0 / clock, n1 / clock), np.float64)
-                    tau = key_readout_times(times, clock)
-                if key_buffer.shape[2] < len(times):
-                    # reused by later chunks (no new page faults), with a little room for
-                    # a chunk with more keys; padding lanes stay 0 (never written)
-                    room = max(len(times), min(max_keys, len(times) + len(times) // 4 + 1))
-                    key_buffer = np.zeros((h, wp // 64, room, 64), np.float32)
-                for i, t in enumerate(times.tolist()):
-                    if t in cache:
-                        key_buffer[:, :, i] = cache[t]
-                    else:
-                        self._sensor_frame_into(t, key_buffer, i)
-                # the next chunk starts at this chunk's last key frame
-                cache = {times[-1].item(): key_buffer[:, :, len(times) - 1].copy()}
+                n1, times, tau = self._chunk_keys(n0, max_keys)
+                key_buffer, cache = self._fill_key_frames(times, key_buffer, cache, max_keys)
                 sched = build_schedule(tau, n0, n1)
                 # rows padded to whole 64-bit words; the kernel writes every word
                 out = buffers.get((n1 - n0, h, wp // 64))
                 c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
                 _kernels.simulate_chunk(
-                    key_buffer, w, n0, *sched.kernel_args(), gain, offset, electrons, frac, whole,
-                    out, reset, fast_ok, paper_fast_ok, sg2, sp2, key(rng.STREAM_PAPER),
-                    key(rng.STREAM_SHOT), jitter, key(rng.STREAM_JITTER), self.clean_twin,
-                    c_frac, c_whole, c_out,
-                    c_gain, c_offset, c_electrons,
+                    key_buffer, w, n0, *sched.kernel_args(), noisy.gain, noisy.offset,
+                    noisy.electrons, noisy.frac, noisy.whole, out, noisy.reset, noisy.fast_ok,
+                    noisy.paper_fast_ok, noisy.paper_sg2, noisy.paper_sp2, noisy.key_paper,
+                    noisy.key_shot, noisy.jitter, noisy.key_jitter, self.clean_twin,
+                    clean.frac, clean.whole, c_out, clean.gain, clean.offset, clean.electrons,
+                    noisy.charge_sd, noisy.key_charge, init, noisy.key_init,
                 )
-                sel = self.gt_readouts[(self.gt_readouts >= n0) & (self.gt_readouts < n1)]
-                gt = np.zeros((len(sel), h, w, 3), np.float32)
-                for i, g in enumerate(sel.tolist()):
-                    gt[i] = validate_radiance(self.scene.radiance((g + 0.5) / clock),
-                                              f"scene.radiance(t={(g + 0.5) / clock:.6g})")
+                init = -1  # later chunks carry the state on
+                gt, sel = self._ground_truth(n0, n1)
                 packed = out.view(np.uint8)[:, :, :nbytes]
                 c_packed = c_out.view(np.uint8)[:, :, :nbytes] if self.clean_twin else None
-                yield SpikeChunk(n0, packed, c_packed, gt, sel.copy())
+                yield SpikeChunk(n0, packed, c_packed, gt, sel)
                 out = c_out = packed = c_packed = None  # only the consumer may hold them now
                 if bar is not None:
                     bar.update(n1 - n0)
@@ -313,6 +305,63 @@ class SimulationRun:
         finally:
             if bar is not None:
                 bar.close()
+
+
+@dataclass
+class _KernelInputs:
+    """Everything :func:`spikesim._kernels.simulate_chunk` needs about one
+    accumulator set (the noisy stream or its clean twin): per-pixel charge
+    constants, accumulator arrays, reset code, fast-path flags, and the noise
+    model's parameters and stream keys (from ``noise.kernel_params()``)."""
+
+    gain: np.ndarray
+    offset: np.ndarray
+    electrons: np.ndarray
+    charge_sd: np.ndarray
+    frac: np.ndarray
+    whole: np.ndarray
+    reset: int = _kernels.RESET_MODULO
+    fast_ok: bool = True
+    paper_fast_ok: bool = False
+    paper_sg2: float = 0.0
+    paper_sp2: float = 0.0
+    jitter: float = 0.0
+    key_paper: np.uint64 = np.uint64(0)
+    key_shot: np.uint64 = np.uint64(0)
+    key_jitter: np.uint64 = np.uint64(0)
+    key_charge: np.uint64 = np.uint64(0)
+    key_init: np.uint64 = np.uint64(0)
+
+    @classmethod
+    def build(cls, sensor: Sensor, seed: int, noise) -> _KernelInputs:
+        h, w = sensor.shape
+        wp = _padded_width(w)
+        gain, offset, electrons, charge_sd = _charge_constants(noise, h, w,
+                                                               sensor.full_scale_rate)
+        params = NO_NOISE_PARAMS if noise is None else noise.kernel_params()
+        per_readout = noise is not None and noise.per_readout
+        return cls(
+            gain, offset, electrons, charge_sd,
+            frac=np.empty((h, wp), np.uint64),  # initialised by the kernel's first call
+            whole=np.empty((h, wp), np.int64),
+            reset=_RESET_CODES[sensor.reset],
+            fast_ok=not per_readout,
+            paper_fast_ok=params["paper_only"],
+            paper_sg2=params["paper_sg2"],
+            paper_sp2=params["paper_sp2"],
+            jitter=params["jitter"],
+            key_paper=rng.stream_key(seed, rng.STREAM_PAPER),
+            key_shot=rng.stream_key(seed, rng.STREAM_SHOT),
+            key_jitter=rng.stream_key(seed, rng.STREAM_JITTER),
+            key_charge=rng.stream_key(seed, rng.STREAM_CHARGE),
+            key_init=rng.stream_key(seed, rng.STREAM_INIT),
+        )
+
+    @classmethod
+    def unused(cls) -> _KernelInputs:
+        """Placeholders for the clean twin's arguments when there is none."""
+        z = np.zeros((1, 64))
+        return cls(z, z, z, z, np.zeros((1, 64), np.uint64), np.zeros((1, 64), np.int64))
 
 
 class _RecycledOutput:
@@ -340,6 +389,33 @@ class _RecycledOutput:
         fresh = np.empty(shape, np.uint64)
         self._arrays = [*self._arrays[-(self.keep - 1):], fresh] if self.keep > 1 else [fresh]
         return fresh
+
+
+def _charge_constants(noise, h: int, w: int, full_scale_rate: float):
+    """The kernel's per-pixel ``gain``, ``offset``, ``electrons``,
+    ``charge_sd`` (padded to whole 64-pixel blocks; padding lanes never fire;
+    ``electrons`` and ``charge_sd`` −1 where the source is off).  Without a physical
+    fixed pattern every row is the same, so each is a single (1, Wp) row the
+    kernel shares between rows (nothing of size H·W built per call)."""
+    wp = _padded_width(w)
+    if not isinstance(noise, PhysicalNoise):
+        gain = np.zeros((1, wp))
+        gain[:, :w] = full_scale_rate
+        off = np.full((1, wp), -1.0)
+        return gain, np.zeros((1, wp)), off, off
+    pattern = fixed_pattern(noise, h, w, full_scale_rate)
+    gain = np.zeros((h, wp))
+    gain[:, :w] = pattern.gain
+    offset = np.zeros((h, wp))
+    offset[:, :w] = pattern.offset
+    electrons = charge_sd = np.full((1, wp), -1.0)
+    if pattern.electrons is not None:
+        electrons = np.ones((h, wp))
+        electrons[:, :w] = pattern.electrons
+    if pattern.charge_sd is not None:
+        charge_sd = np.zeros((h, wp))
+        charge_sd[:, :w] = pattern.charge_sd
+    return gain, offset, electrons, charge_sd
 
 
 def _padded_width(width: int) -> int:

@@ -19,6 +19,8 @@ eq. 1 for the pixel, eq. 5 for paper-mode noise):
   s.d. ``σ_t`` per firing cycle gives ``q·σ_t²`` (one draw per threshold
   crossed); together ``q·κ²`` with the **cycle coefficient of variation**
   ``κ² = σ_t² + 1/E``.  Paper mode: ``r²·(σ_g² + σ_p²·y)/255²`` with ``y`` in DN.
+  A charge noise of ``σ_e`` electrons per readout (``charge_noise_electrons``)
+  adds ``σ_q² = (σ_e/E)²`` per readout whatever the charge.
 * **Inter-spike interval.**  The unclocked cycle length is
   ``τ ~ (1/q)·(1 + κ·z)`` readouts (renewal, independent cycles), so
   ``Var(τ) = κ²/q²``.  Clocking maps ``τ`` to ``⌈τ − u⌉`` with the phase ``u``
@@ -27,6 +29,12 @@ eq. 1 for the pixel, eq. 5 for paper-mode noise):
   Noise free this is ``p(1 − p)``, ``p = frac(1/q)``: intervals of
   ``floor(1/q)`` and ``ceil(1/q)`` readouts only.  With ``sd(τ) ≳ 0.5``
   readouts the second term is 1/6.
+* **Accumulating charge noise.**  Independent Gaussian charges of variance
+  ``σ_q²`` per readout make the charge a random walk with drift ``q``; the
+  time to gain one threshold is its first passage time (inverse Gaussian),
+  of variance ``σ_q²/q³``.  So ``Var(τ) = κ²/q² + σ_q²/q³`` and the cycle
+  CV² is ``κ² + σ_q²·m`` with ``m = 1/q``: it grows with the interval length,
+  unlike per-cycle noise (:func:`isi_cv2_theory`).
 
 The expectation ``E[frac(X)(1 − frac(X))]`` over a Gaussian ``X`` is computed
 from the Fourier series of the sawtooth (:func:`frac_variance`).
@@ -46,6 +54,8 @@ __all__ = [
     "charge_variance_per_readout",
     "isi_mean_theory",
     "isi_var_theory",
+    "isi_cv2_theory",
+    "charge_noise_var",
     "isi_clean_pmf",
 ]
 
@@ -97,16 +107,24 @@ def cycle_cv2(noise) -> float:
     return float(k2)
 
 
+def charge_noise_var(noise) -> float:
+    """``σ_q²`` (thresholds² per readout) of the accumulating charge noise
+    (nominal threshold; 0 for other models)."""
+    if not isinstance(noise, PhysicalNoise):
+        return 0.0
+    return float((noise.charge_noise_electrons / noise.electrons_per_threshold) ** 2)
+
+
 def charge_variance_per_readout(q, noise, full_scale_rate: float, intensity=None):
     """Per-readout variance of the charge (thresholds²) at mean charge ``q``.
 
-    Physical mode: ``q·κ²`` (see module notes; fixed-pattern electrons per
-    threshold are ignored to first order).  Paper mode (eq. 5):
+    Physical mode: ``q·κ² + σ_q²`` (see module notes; fixed-pattern electrons
+    per threshold are ignored to first order).  Paper mode (eq. 5):
     ``r²·(σ_g² + σ_p²·y)/255²``, ``y = 255·intensity`` (clipping at 0 ignored).
     """
     q = np.asarray(q, dtype=np.float64)
     if isinstance(noise, PhysicalNoise):
-        return q * cycle_cv2(noise)
+        return q * cycle_cv2(noise) + charge_noise_var(noise)
     if isinstance(noise, PaperNoise):
         y = 255.0 * np.asarray(intensity if intensity is not None else 0.0, dtype=np.float64)
         return full_scale_rate**2 * noise.variance_dn(y) / 255.0**2 + 0.0 * q
@@ -125,11 +143,21 @@ def isi_mean_theory(q) -> np.ndarray:
     return 1.0 / np.asarray(q, dtype=np.float64)
 
 
-def isi_var_theory(q, kappa2: float = 0.0) -> np.ndarray:
-    """Variance of the clocked inter-spike interval (readouts²), see module notes."""
+def isi_var_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0) -> np.ndarray:
+    """Variance of the clocked inter-spike interval (readouts²), see module
+    notes: ``Var(τ) + E[frac(τ)(1 − frac(τ))]`` with
+    ``Var(τ) = κ²/q² + σ_q²/q³``."""
     q = np.asarray(q, dtype=np.float64)
-    sd = np.sqrt(kappa2) / q
+    sd = np.sqrt(kappa2 / q**2 + sigma_q2 / q**3)
     return sd**2 + frac_variance(1.0 / q, sd)
+
+
+def isi_cv2_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0) -> np.ndarray:
+    """Squared CV of the unclocked cycle length, ``κ² + σ_q²·m`` with
+    ``m = 1/q`` readouts: constant for per-cycle noise, growing linearly with
+    the interval for accumulating charge noise."""
+    q = np.asarray(q, dtype=np.float64)
+    return kappa2 + sigma_q2 / q
 
 
 def isi_clean_pmf(q: float) -> dict[int, float]:

@@ -53,17 +53,20 @@ class Static(Scene):
         self._image = validate_radiance(image, "image")
         self._image.setflags(write=False)
         self.height, self.width = self._image.shape[:2]
+        self._mean: list[float] | None = None
 
     def radiance(self, t: float) -> np.ndarray:
         return self._image
 
     def describe(self) -> dict:
-        img = self._image
+        if self._mean is None:  # computed once: every simulation of the scene asks for it
+            sums = self._image.sum(axis=(0, 1), dtype=np.float64)
+            self._mean = [float(v) / (self.height * self.width) for v in sums]
         return {
             "type": "static",
             "height": self.height,
             "width": self.width,
-            "mean_radiance": [float(v) for v in img.reshape(-1, 3).mean(axis=0)],
+            "mean_radiance": list(self._mean),
         }
 
     def __repr__(self) -> str:

@@ -13,10 +13,10 @@ import spikesim as ss
 CLOCK = 1000.0
 
 
-def _bright_then_dark(level, n_bright, width=16):
+def _bright_then_dark(level, n_bright, width=16, height=1):
     """Radiance `level` until readout n_bright, dark from readout n_bright + 1 on."""
-    bright = np.full((1, width), level, np.float32)
-    dark = np.zeros((1, width), np.float32)
+    bright = np.full((height, width), level, np.float32)
+    dark = np.zeros((height, width), np.float32)
     return Keyframes(np.array([n_bright, n_bright + 1]) / CLOCK, [bright, dark])
 
 
@@ -68,3 +68,40 @@ def test_subtract_mode_backlog_grows_as_documented():
     # the backlog (~500 readouts) keeps firing long after the light went out
     assert spikes[n_bright + 1 : n_bright + 400].all()
     assert not spikes[-100:].any()
+
+
+_EXTREME = [  # (radiance, full_scale_rate): charges of 6e16, 6e29 and 1e19 thresholds, and ∞
+    (1e17, 0.6), (1e30, 0.6), (1.0, 1e19), (3e38, 1e300)]
+_NOISES = {"none": None, "paper": ss.noise.PaperNoise(sigma_g=10.0, sigma_p=2.0),
+           "physical": ss.noise.PhysicalNoise()}
+
+
+@pytest.mark.parametrize("noise", sorted(_NOISES))
+@pytest.mark.parametrize("reset", ["modulo", "zero", "subtract"])
+@pytest.mark.parametrize("level, rate", _EXTREME)
+def test_unrepresentable_charges_saturate(level, rate, reset, noise):
+    """Charges of ≥ 2⁶³ thresholds per readout (and infinite ones) fire at every
+    readout; after the light goes out the bounded modes stop, subtract keeps
+    paying back its (bounded) backlog."""
+    sensor = ss.Sensor(height=2, width=70, cfa=None, reset=reset, clock_hz=CLOCK,
+                       full_scale_rate=rate, noise=_NOISES[noise])
+    scene = _bright_then_dark(level, 200, width=70, height=2)
+    st = ss.simulate(scene, sensor, 400, seed=5, chunk_readouts=64)
+    spikes = st.unpack()
+    assert spikes[:200].all()
+    if reset == "subtract":
+        assert spikes[201:].all()
+    elif noise == "none":  # noise fires a dark pixel now and then
+        assert not spikes[202:].any()
+
+
+def test_subtract_backlog_saturates_without_overflow():
+    """Subtract reset at radiance 1e17 for 1000 readouts: the backlog would be
+    6e19 thresholds (> 2⁶³); it stops at WHOLE_MAX, every readout fires."""
+    from spikesim import _kernels
+
+    sensor = ss.Sensor(height=1, width=64, cfa=None, reset="subtract", clock_hz=CLOCK)
+    st = ss.simulate(ss.scenes.Static(np.full((1, 64), 1e17, np.float32)), sensor, 1000)
+    assert st.unpack().all()
+    q = 0.6 * float(np.float32(1e17))
+    assert 1000 * q > 2**63 > _kernels.WHOLE_MAX + _kernels.Q_WHOLE_MAX + 1

@@ -7,10 +7,13 @@ from numba import njit
 
 from spikesim._simd import (
     carry_add64,
+    carry_add64_zero,
     high_bits_at_least64,
     linear_carry_add64,
+    linear_carry_add64_zero,
     lowest_bit_index,
     paper_carry_add64,
+    paper_carry_add64_zero,
 )
 
 TWO64 = 2.0**64
@@ -29,6 +32,21 @@ def _linear(acc, a, d, g, o, phi, start):
 @njit
 def _paper(acc, level, z, sd, g, o, start):
     return paper_carry_add64(acc, level, z, sd, g, o, start)
+
+
+@njit
+def _carry_zero(acc, inc, start):
+    return carry_add64_zero(acc, inc, start)
+
+
+@njit
+def _linear_zero(acc, a, d, g, o, phi, start):
+    return linear_carry_add64_zero(acc, a, d, g, o, phi, start)
+
+
+@njit
+def _paper_zero(acc, level, z, sd, g, o, start):
+    return paper_carry_add64_zero(acc, level, z, sd, g, o, start)
 
 
 @njit
@@ -110,3 +128,30 @@ def test_lane_masks_and_lowest_bit():
     assert int(_outside(values, 52, 16, 4064)) == _mask([1, 1, 0, 0, 0, 1, 1] + [0] * 57)
     for bit in (0, 1, 37, 63):
         assert int(_ctz(np.uint64(1 << bit) | np.uint64(1 << 63))) == bit
+
+
+def test_zero_reset_steps_clear_exactly_the_lanes_that_carried():
+    """The ``_zero`` twins: the same carry bits as the modulo step, and the
+    lanes that carried hold 0 afterwards, the others the modulo sum."""
+    rng = np.random.default_rng(4)
+    n = 128
+    acc = rng.integers(0, 2**64, n, dtype=np.uint64)
+    inc = rng.integers(0, 2**63, n, dtype=np.uint64)
+    a, d = rng.random(n) * 0.4 + 0.1, (rng.random(n) - 0.5) * 0.2
+    g, o = rng.random(n) + 0.2, rng.random(n) * 0.01
+    level, z, sd = rng.random(n) * 0.5, rng.standard_normal(n) * 3, rng.random(n) * 0.05
+    pairs = [(lambda x, s: _carry(x, inc, s), lambda x, s: _carry_zero(x, inc, s)),
+             (lambda x, s: _linear(x, a, d, g, o, 0.3, s),
+              lambda x, s: _linear_zero(x, a, d, g, o, 0.3, s)),
+             (lambda x, s: _paper(x, level, z, sd, g, o, s),
+              lambda x, s: _paper_zero(x, level, z, sd, g, o, s))]
+    for modulo, zero in pairs:
+        for start in (0, 64):
+            sl = slice(start, start + 64)
+            want, got = acc.copy(), acc.copy()
+            m = modulo(want, start)
+            assert 0 < int(m) < 2**64 - 1  # some lanes carry, some do not
+            assert int(zero(got, start)) == int(m)
+            fired = np.array([(int(m) >> k) & 1 for k in range(64)], bool)
+            np.testing.assert_array_equal(got[sl][fired], 0)
+            np.testing.assert_array_equal(got[sl][~fired], want[sl][~fired])

@@ -1,0 +1,54 @@
+"""numba kernel sampling linear RGB radiance through the colour filter into the
+blocked key-frame layout of :func:`spikesim._kernels.simulate_chunk`."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from spikesim._kernels import BLOCK
+
+__all__ = ["mosaic_into"]
+
+_opts = dict(cache=True, error_model="numpy", boundscheck=False)
+
+
+@njit(parallel=True, **_opts)
+def mosaic_into(rgb, tile, luma, out, k):
+    """Sample (H, W, 3) radiance through the CFA into key ``k`` of ``out``
+    (the blocked key-frame layout of :func:`simulate_chunk`) in one pass.
+
+    ``rgb`` must be C-contiguous (each row is read as one flat run of 3·W
+    values, which keeps both loops vectorised).  ``tile`` (2, 2) int64 holds
+    the channel of each Bayer phase, or −1 for a monochrome sensor (which sees
+    ``luma``-weighted RGB, summed in float64).  Padding lanes are not written.
+    Returns the number of values that are NaN, infinite or negative (0 means
+    the input is valid); the caller raises on any.
+    """
+    h = rgb.shape[0]
+    w = rgb.shape[1]
+    flat = rgb.reshape(h, 3 * w)
+    bad = 0
+    for y in prange(h):
+        row = flat[y]
+        row_bad = 0
+        for i in range(3 * w):
+            v = row[i]
+            ok = (v >= 0.0) & (v * 0.0 == 0.0)  # v·0 is NaN for NaN and ±inf
+            row_bad += 0 if ok else 1
+        mono = tile[0, 0] < 0
+        c0 = tile[y & 1, 0]
+        dc = tile[y & 1, 1] - c0
+        for b in range((w + BLOCK - 1) // BLOCK):
+            x0 = b * BLOCK
+            dst = out[y, b, k]
+            for lane in range(min(BLOCK, w - x0)):
+                x = x0 + lane
+                if mono:
+                    dst[lane] = np.float32(luma[0] * np.float64(row[3 * x])
+                                           + luma[1] * np.float64(row[3 * x + 1])
+                                           + luma[2] * np.float64(row[3 * x + 2]))
+                else:
+                    dst[lane] = row[3 * x + c0 + (x & 1) * dc]
+        bad += row_bad
+    return bad
