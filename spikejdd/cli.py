@@ -403,7 +403,7 @@ def _dispatch(parser, args) -> int:
     if device is not None and str(device).strip().lower() != "auto":
         from spikejdd.runtime import check_device
 
-        check_device(device)
+        check_device(device, "--device")
     if args.command == "evaluate":
         return _evaluate(args)
     if args.command == "train":

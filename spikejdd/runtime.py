@@ -27,8 +27,9 @@ __all__ = ["check_device", "set_threads", "configure", "machine_info", "describe
 DEFAULT_CPU_THREADS = 1
 
 
-def check_device(device: str | None) -> str:
-    """Validated torch device name (``None`` = ``"cpu"``); raises naming what exists here."""
+def check_device(device: str | None, name: str = "device") -> str:
+    """Validated torch device name (``None`` = ``"cpu"``); raises naming what exists here
+    (``name``: how the error names the setting, e.g. ``"--device"`` on a command line)."""
     if device is None:
         return "cpu"
     import torch
@@ -36,7 +37,7 @@ def check_device(device: str | None) -> str:
     try:
         dev = torch.device(str(device).strip())
     except (RuntimeError, ValueError):
-        raise bad_value("device", device, "cpu, cuda, cuda:N or mps") from None
+        raise bad_value(name, device, "cpu, cuda, cuda:N or mps") from None
     if dev.type == "cpu":
         return "cpu"
     if dev.type == "cuda":
@@ -44,13 +45,13 @@ def check_device(device: str | None) -> str:
         index = 0 if dev.index is None else dev.index
         if index >= n:
             have = f"CUDA devices cuda:0..cuda:{n - 1}" if n else "no CUDA device"
-            raise bad_value("device", device, f"a device this machine has ({have}; use cpu)")
+            raise bad_value(name, device, f"a device this machine has ({have}; use cpu)")
         return f"cuda:{index}"
     if dev.type == "mps":
         if not (getattr(torch.backends, "mps", None) and torch.backends.mps.is_available()):
-            raise bad_value("device", device, "a device this machine has (no MPS; use cpu)")
+            raise bad_value(name, device, "a device this machine has (no MPS; use cpu)")
         return "mps"
-    raise bad_value("device", device, "cpu, cuda, cuda:N or mps")
+    raise bad_value(name, device, "cpu, cuda, cuda:N or mps")
 
 
 def set_threads(threads: int | None, device: str = "cpu") -> int:
