@@ -177,20 +177,7 @@ class ArraySpinner(RotatingDisk):
             raise bad_value("pattern", pattern, "'fan' or 'disk'")
         self.name = self.motion = self.pattern = pattern
         self.blades, self.background, self.texture = int(blades), "array", "array"
-        self._set_speed(speed)
-        self.radius = 0.4 * min(h, w)
-        self.omega = speed / self.radius
-        self._bg = np.asarray(background, np.float32)
-        rows, cols = np.mgrid[0:h, 0:w].astype(np.float64)
-        self._cx, self._cy = (w - 1) / 2.0, (h - 1) / 2.0
-        self._dx, self._dy = cols - self._cx, rows - self._cy
-        self._r = np.hypot(self._dx, self._dy)
-        self._phi = np.arctan2(self._dy, self._dx)
-        self._rim = np.clip(self.radius + 0.5 - self._r, 0.0, 1.0)
-        if pattern == "disk":
-            self._tex = SplineTexture(np.asarray(texture, np.float32))
-        self._blade_rgb = np.asarray(blade_rgb, np.float32)
-        self._hub = np.clip(0.18 * self.radius + 0.5 - self._r, 0.0, 1.0)
+        self._build(speed, background, texture, blade_rgb)
 
 
 def _content(rng, size, pictures) -> tuple[np.ndarray, str]:

@@ -144,21 +144,28 @@ class RotatingDisk(ProceduralScene):
         self.name = self.motion = pattern
         self.pattern, self.blades = pattern, int(blades)
         self.background, self.texture = background, texture
-        speed = check_positive("speed", speed)
+        h, w = self.height, self.width
+        self._build(check_positive("speed", speed), load_image(background, (h, w)),
+                    load_image(texture, (h, w)) if pattern == "disk" else None)
+
+    def _build(self, speed: float, background: np.ndarray, texture: np.ndarray | None,
+               blade_rgb=(0.85, 0.8, 0.7)) -> None:
+        """The disk's geometry over ``background`` (H, W, 3) linear radiance; ``texture``
+        (same shape) is what a ``disk`` carries; ``speed`` is the rim speed in px/s."""
         self._set_speed(speed)
         h, w = self.height, self.width
         self.radius = 0.4 * min(h, w)
         self.omega = speed / self.radius
-        self._bg = load_image(background, (h, w))
+        self._bg = np.asarray(background, np.float32)
         rows, cols = np.mgrid[0:h, 0:w].astype(np.float64)
         self._cx, self._cy = (w - 1) / 2.0, (h - 1) / 2.0
         self._dx, self._dy = cols - self._cx, rows - self._cy
         self._r = np.hypot(self._dx, self._dy)
         self._phi = np.arctan2(self._dy, self._dx)
         self._rim = np.clip(self.radius + 0.5 - self._r, 0.0, 1.0)
-        if pattern == "disk":
-            self._tex = SplineTexture(load_image(texture, (h, w)))
-        self._blade_rgb = np.array([0.85, 0.8, 0.7], np.float32)
+        if self.pattern == "disk":
+            self._tex = SplineTexture(np.asarray(texture, np.float32))
+        self._blade_rgb = np.asarray(blade_rgb, np.float32)
         self._hub = np.clip(0.18 * self.radius + 0.5 - self._r, 0.0, 1.0)
 
     def _render(self, t: float) -> np.ndarray:
