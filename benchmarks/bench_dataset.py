@@ -29,6 +29,9 @@ from spikesim.dataset import build_dataset, load_manifest
 
 RESULTS = Path(__file__).parent / "results"
 
+#: 1-minute load average when the benchmark started (other jobs on the shared cores).
+LOAD_AT_START = os.getloadavg()[0]
+
 
 def _texture(h: int, w: int, seed: int):
     """Smooth random 8-bit texture (structure at several scales: flow finds it)."""
@@ -106,7 +109,8 @@ def realistic(repeats: int, count: int, out: Path) -> None:
                 for k in mine[0]["stage_seconds_per_seq"]}}
     speedups = [b["sequences_per_min"] / a["sequences_per_min"] for a, b in
                 zip(rows[0::2], rows[1::2], strict=True)]
-    result = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, shared with other work",
+    result = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, load average "
+                         f"{LOAD_AT_START:.1f} at the start (other jobs share the cores)",
               "sequences": 2 * count, "rows": rows, "summary": summary,
               "speedup_2_workers": speedups,
               "command": f"python benchmarks/bench_dataset.py --realistic --repeats {repeats} "
