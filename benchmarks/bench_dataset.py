@@ -115,10 +115,15 @@ def realistic(repeats: int, count: int, out: Path) -> None:
               "speedup_2_workers": speedups,
               "command": f"python benchmarks/bench_dataset.py --realistic --repeats {repeats} "
                          f"--count {count}"}
+    save(out, "dataset_realistic", result, realistic_markdown(result))
+
+
+def save(out: Path, name: str, result: dict, markdown: str) -> None:
+    """Write ``out/NAME.json`` and ``out/NAME.md`` and print the Markdown."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "dataset_realistic.json").write_text(json.dumps(result, indent=2))
-    (out / "dataset_realistic.md").write_text(realistic_markdown(result))
-    print(realistic_markdown(result))
+    (out / f"{name}.json").write_text(json.dumps(result, indent=2))
+    (out / f"{name}.md").write_text(markdown)
+    print(markdown)
 
 
 def realistic_markdown(r) -> str:
@@ -188,11 +193,7 @@ def main(argv=None):
         "command": f"python benchmarks/bench_dataset.py --manifest {args.manifest} "
                    f"--limit {args.limit}",
     }
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "dataset.json").write_text(json.dumps(result, indent=2))
-    (out / "dataset.md").write_text(to_markdown(result))
-    print(to_markdown(result))
+    save(Path(args.out), "dataset", result, to_markdown(result))
 
 
 def to_markdown(r) -> str:
