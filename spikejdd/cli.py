@@ -104,6 +104,8 @@ def _train_parser(sub) -> None:
     tr.add_argument("--no-amp", action="store_true", help="no mixed precision on CUDA")
     tr.add_argument("--no-flips", action="store_true", help="no random flips")
     tr.add_argument("--resume", help="checkpoint to resume from, or 'auto' (<out>/last.pt)")
+    tr.add_argument("--init", help="weights to start from (a shipped name such as sjdd-lite, or "
+                                   "a checkpoint), with a fresh schedule; ignored on resume")
     tr.add_argument("--online", action="store_true",
                     help="simulate every sample in the data loader (no --data needed)")
     tr.add_argument("--clip", action="append", default=[], dest="clips", metavar="PATH",
@@ -213,7 +215,7 @@ def _train(args) -> int:
     for name in ("data", "out", "eval_data", "model", "steps", "batch_size", "crop", "lr",
                  "lr_step", "gamma", "noise_weight", "eval_every", "eval_frames",
                  "checkpoint_every", "seed", "workers", "time_limit_min", "device", "resume",
-                 "threads", "lr_step_epochs", "epoch_steps", "validation"):
+                 "init", "threads", "lr_step_epochs", "epoch_steps", "validation"):
         v = getattr(args, name, None)
         if v is not None:
             cfg[name] = v

@@ -68,6 +68,7 @@ class TrainConfig:
     amp: bool = True
     time_limit_min: float | None = None
     resume: str | None = None  # a checkpoint path, or "auto" = <out>/last.pt when present
+    init: str | None = None  # weights to start from (shipped name or checkpoint); not on resume
     progress: bool = True
 
     def model_config(self) -> SJDDConfig:

@@ -39,6 +39,8 @@ def train(cfg: TrainConfig | dict) -> dict:
     path = tr.resume_path()
     if path:
         tr.resume(path)
+    elif cfg.init:
+        tr.initialise(cfg.init)
     out, main = tr.out, tr.main
     if main:
         (out / "run.json").write_text(json.dumps(tr.run_info, indent=1, default=str))

@@ -32,6 +32,7 @@ import torch.distributed as dist
 import torch.nn.functional as F
 
 from spikejdd.models.checkpoints import load_checkpoint, save_checkpoint
+from spikejdd.models.pretrained import resolve_weights
 from spikejdd.models.sjdd import SJDDNet, count_parameters
 from spikejdd.train.config import TrainConfig
 from spikejdd.train.state import TrainState
@@ -313,6 +314,16 @@ class Trainer:
             self.optimizer.load_state_dict(tr["optimizer"])
             self.scheduler.load_state_dict(tr["scheduler"])
         self.state = TrainState.from_checkpoint(tr)
+
+    def initialise(self, weights: str) -> None:
+        """Start from the weights of ``weights`` (a shipped name or a checkpoint path) with
+        a fresh optimizer, schedule and state: fine-tuning, not resuming."""
+        path = resolve_weights(weights)
+        blob = load_checkpoint(path)
+        if blob["config"] != self.mcfg.to_dict():
+            raise bad_value("init", str(weights), "weights of the same model configuration "
+                            f"as --model {self.cfg.model} (and its --set overrides)")
+        self.model.load_state_dict(blob["state_dict"])
 
     def resume_path(self) -> str | None:
         r = self.cfg.resume

@@ -91,6 +91,25 @@ def test_resume_with_another_model_is_refused(tiny_data, tmp_path):
         train(_cfg(root, tmp_path / "r", resume="auto", model_overrides=other))
 
 
+def test_init_starts_from_weights_with_a_fresh_schedule(tiny_data, tmp_path):
+    root, _ = tiny_data
+    train(_cfg(root, tmp_path / "a", steps=2))
+    start = tmp_path / "a" / "last.pt"
+    tuned = train(_cfg(root, tmp_path / "b", steps=1, lr=1e-12, init=str(start)))
+    assert tuned["steps_done"] == 1
+    a = load_checkpoint(start)["state_dict"]
+    b = load_checkpoint(tmp_path / "b" / "last.pt")
+    assert b["train"]["step"] == 1  # a fresh state, not the start's step 2
+    for k in a:  # a tiny learning rate: one step barely moves the start weights
+        torch.testing.assert_close(b["state_dict"][k], a[k], rtol=0, atol=1e-6, msg=k)
+    scratch = load_checkpoint(tmp_path / "a" / "best.pt")["state_dict"]
+    fresh = SJDDNet(TINY).state_dict()
+    assert any(not torch.equal(scratch[k], fresh[k]) for k in fresh)  # so the check above bites
+    other = dict(TINY.to_dict(), stages=2)
+    with pytest.raises(SpikeSimValueError, match="init"):
+        train(_cfg(root, tmp_path / "c", steps=1, init=str(start), model_overrides=other))
+
+
 def test_bad_train_config():
     with pytest.raises(SpikeSimValueError, match="data"):
         TrainConfig().validate()
