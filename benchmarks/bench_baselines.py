@@ -5,7 +5,8 @@ Writes benchmarks/results/baselines_sweep.{json,md,png}.  Equivalent to::
     spikejdd evaluate --sweep --size 64x96 --frames-per-scene 2 --repeats 3 \
         --out benchmarks/results/baselines_sweep
 
-Machine note: measured on a 2-core AMD EPYC VM shared with other work.
+The report records the machine as it describes itself (CPU, cores, load
+average); see ``spikejdd.runtime.machine_info``.
 """
 
 from __future__ import annotations

@@ -39,11 +39,11 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing as mp
-import platform
 import sys
 import time
 from pathlib import Path
 
+import machine
 import numpy as np
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -413,7 +413,7 @@ def main(argv: list[str] | None = None) -> int:
         t0 = time.perf_counter()
         rows = crop_first()
         meta = {"size": [720, 1280], "crop": 256, "fps": 24.0, "pairs": 2, "samples": 4,
-                "machine": f"{platform.machine()}, {mp.cpu_count()} cores (shared)",
+                "machine": machine.describe(),
                 "command": "python benchmarks/bench_interpolation.py --crop-first",
                 "wall_s": time.perf_counter() - t0}
         args.out.mkdir(parents=True, exist_ok=True)
@@ -459,9 +459,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"end-to-end comparison skipped: {exc}")
     wall = time.perf_counter() - t0
     meta = {
-        "machine": f"{platform.processor() or platform.machine()}, "
-                   f"{mp.cpu_count()} cores (2-core AMD EPYC VM, shared with other work "
-                   "during the run)",
+        "machine": machine.describe(),
         "python": sys.version.split()[0], "command": "python benchmarks/bench_interpolation.py "
         + " ".join(argv if argv is not None else sys.argv[1:]),
         "size": args.size, "pairs": args.pairs, "samples": args.samples, "wall_s": wall,

@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import h5py
+import machine
 import numpy as np
 
 import spikesim as ss
@@ -148,7 +149,7 @@ def markdown(res: dict) -> str:
     out = [
         "# I/O benchmark (`benchmarks/bench_io.py`)", "",
         f"Command: `{res['command']}`  ",
-        f"Machine: {m['cpu']}, {m['cores']} cores, shared with other work during the run; "
+        f"Machine: {m['description']}; "
         f"Python {m['python']}, h5py {m['h5py']}, HDF5 {m['hdf5']}, hdf5plugin "
         f"{'yes' if m['hdf5plugin'] else 'no'}.  ",
         f"Data: {res['readouts']} readouts of {res['size']}x{res['size']} RGGB "
@@ -226,6 +227,7 @@ def main() -> None:
         shutil.rmtree(tmp, ignore_errors=True)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    res["machine"]["description"] = machine.describe()
     (out / "io.json").write_text(json.dumps(res, indent=1))
     (out / "io.md").write_text(markdown(res))
     print(markdown(res))

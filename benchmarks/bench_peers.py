@@ -35,13 +35,12 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
-import os
-import platform
 import statistics
 import sys
 import time
 from pathlib import Path
 
+import machine
 import numpy as np
 
 import spikesim as ss
@@ -129,9 +128,7 @@ def main(argv=None) -> int:
         "speedup_median": statistics.median(ratios),
         "speedup_range": [min(ratios), max(ratios)],
         "mean_rate": {"spikesim": float(ours), "spikezoo": float(theirs)},
-        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs "
-                   "(shared with other jobs: compare ratios, not absolute times)",
-        "load_average_1min_after": os.getloadavg()[0],
+        "machine": machine.describe(),
     }
     rows = [
         "| simulator | median time (s) | pixel-readouts/s | spikes per readout |",
@@ -144,8 +141,7 @@ def main(argv=None) -> int:
     table = "\n".join(rows) + (
         f"\n\nspikesim / Spike-Zoo speed ratio: median {result['speedup_median']:.0f}× "
         f"(range {lo:.0f}–{hi:.0f}× over {args.pairs} alternating pairs), {result['scene']}; "
-        f"load average {result['load_average_1min_after']:.1f} on {os.cpu_count()} CPUs "
-        "(other jobs running).\n")
+        f"machine: {result['machine']}.\n")
     print(table)
     if not args.quick:
         RESULTS.mkdir(exist_ok=True)

@@ -23,7 +23,8 @@ Usage::
     python benchmarks/bench_sjdd.py [--weights sjdd-lite] [--threads 1] [--skip-sweep]
         [--skip-deform] [--skip-table] [--table-size 64x96] [--table-frames 2]
 
-Machine note: a 2-core AMD EPYC VM shared with other work; times are indicative.
+Every result file records the machine as it describes itself, with the load
+average at the start and the end (``benchmarks/machine.py``).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ import sys
 import time
 from pathlib import Path
 
+import machine
 import numpy as np
 import torch
 
@@ -79,12 +81,12 @@ def bench_deform(threads: int) -> dict:
         rows.append(row)
     res = {"threads": threads, "torchvision": torchvision_available(), "rows": rows,
            "torch": str(torch.__version__),
-           "note": "median of 5 after one warm-up; 2-core VM shared with other work"}
+           "note": "median of 5 after one warm-up", "machine": machine.describe()}
     (RESULTS / "sjdd_deform.json").write_text(json.dumps(res, indent=1))
     md = ["# sjdd_deform: deformable convolution on CPU", "",
           f"torch {torch.__version__}, {threads} thread(s); torchvision "
           f"{'installed' if torchvision_available() else 'NOT installed (its column is absent)'}."
-          " Median of 5 calls after a warm-up, ms.", "",
+          " Median of 5 calls after a warm-up, ms.", "", f"Machine: {res['machine']}.", "",
           "| model | input (N,C,H,W) | offset groups | weight groups | "
           + " | ".join(f"{be} fwd | {be} fwd+bwd" for be in backends) + " | conv2d fwd |",
           "|---" * (5 + 2 * len(backends)) + "|"]
@@ -158,7 +160,7 @@ def bench_table(weights: str, threads: int, size=(64, 96), frames: int = 2) -> d
            "noise": "GN sigma_g=10", "speeds_px_s": list(TABLE_SPEEDS), "table": table,
            "command": f"python benchmarks/bench_sjdd.py --weights {weights} --threads {threads} "
                       f"--skip-deform --skip-sweep --table-size {size[0]}x{size[1]} "
-                      f"--table-frames {frames}"}
+                      f"--table-frames {frames}", "machine": machine.describe()}
     (RESULTS / "sjdd_speed_table.json").write_text(json.dumps(res, indent=1))
     md = speed_table_md(res)
     (RESULTS / "sjdd_speed_table.md").write_text(md)
@@ -174,6 +176,7 @@ def speed_table_md(res: dict) -> str:
              f"`{res['command']}`; {res['size'][0]}×{res['size'][1]}, "
              f"{res['frames_per_cell']} frame(s) per cell, PSNR linear; the best of "
              f"{', '.join(CLASSICAL)} per cell.", "",
+             *([f"Machine: {res['machine']}.", ""] if "machine" in res else []),
              "| scene | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
     for scene, row in res["table"].items():
         lines.append(f"| {scene} | " + " | ".join(f"{row[s]['delta_db']:+.2f}" for s in speeds)

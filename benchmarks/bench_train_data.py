@@ -17,8 +17,8 @@ Usage::
     python benchmarks/bench_train_data.py [--crops 32 64] [--workers 0 2] [--models lite]
         [--samples 16] [--steps 2]
 
-Machine note: a 2-core VM shared with other work; times are indicative.  On
-the GPU machine (16 cores) run it there to size ``--workers``.
+The result records the machine as it describes itself, load average
+included.  On the GPU machine (16 cores) run it there to size ``--workers``.
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import time
 from pathlib import Path
 
+import machine
 import torch
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
     cmd = "python benchmarks/bench_train_data.py " + " ".join(sys.argv[1:] if argv is None
                                                               else argv)
     res = {"command": cmd.strip(), "rows": rows, "cpus": os.cpu_count(),
-           "machine": platform.processor() or platform.machine(), "torch": torch.__version__,
+           "machine": machine.describe(), "torch": torch.__version__,
            "threads": 1, "batch": 8}
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,38 @@
+"""The machine a benchmark ran on, as it describes itself (never fixed text).
+
+Imported by the ``bench_*.py`` scripts (run as ``python benchmarks/bench_x.py``,
+so this folder is on ``sys.path``).  Import it first: the load average at
+import time is the one "at the start" of the run.
+"""
+
+from __future__ import annotations
+
+import os
+
+from spikejdd.runtime import describe_machine, machine_info
+
+__all__ = ["LOAD_AT_START", "load_average", "describe"]
+
+
+def load_average() -> float | None:
+    """The 1-minute load average now (None where the OS does not tell it)."""
+    try:
+        return os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return None
+
+
+#: The 1-minute load average when the benchmark started.
+LOAD_AT_START = load_average()
+
+
+def describe() -> str:
+    """One line: CPU, cores, memory, torch threads, OS, and the load average at the
+    start and now (other jobs on the machine show as a load above zero)."""
+    info = machine_info()
+    info.pop("load_average_1min", None)
+    text = describe_machine(info)
+    end = load_average()
+    if LOAD_AT_START is not None and end is not None:
+        text += f"; 1-min load average {LOAD_AT_START:.2f} at the start, {end:.2f} at the end"
+    return text
