@@ -153,13 +153,17 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
         from spikesim.analysis.fitcheck import compare_resimulations, default_sensor_like
 
         fit = compare_resimulations(
-            cap, {"calibrated": sensor, "defaults": default_sensor_like(sensor)}, rate, dark,
+            cap, {"calibrated": sensor,
+                  "defaults": default_sensor_like(sensor, scale_known=levels is not None)},
+            rate, dark,
             flats, lv, hot, n_readouts=min(n, cfg.check_readouts or n), seed=cfg.check_seed,
             progress=progress)
-    return _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected, fit)
+    return _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected, fit,
+                   flat_levels_unknown=levels is None)
 
 
-def _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected, fit):
+def _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected, fit,
+            flat_levels_unknown: bool):
     """Assemble the :class:`CalibrationResult` (data, tables, notes, plot)."""
     gof = None if fit is None else {
         **{k: v for k, v in fit["fits"]["calibrated"].items() if k != "plot"},
@@ -204,6 +208,10 @@ def _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected,
     ]
     if fit is not None:
         result.notes.append(_verdict(fit["rows"]))
+        if flat_levels_unknown:
+            result.notes.append("The defaults' re-simulation keeps the fitted dark_current_rel "
+                                "and hot_pixel_dark_rel: with radiances unknown, full scale is "
+                                "the brightest region and fractions of it are not comparable.")
     return result
 
 

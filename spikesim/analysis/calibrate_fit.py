@@ -39,8 +39,11 @@ spreads.  The steps, in order (rates ``λ_i`` = counts/T):
    also present in flat regions (:func:`flat_samples`): where ``Δ`` is at
    least 8 robust s.d. of the region's rates they are cut out (rates above
    median + Δ/2), otherwise their two-point mixture is removed from the
-   moments: mean − ``f·Δ``, variance − ``f(1 − f)·Δ²``.  Without a dark
-   region, gross outliers (6 robust s.d. in log rate) are dropped.
+   moments: mean − ``f·Δ``, variance − ``f(1 − f)·Δ²``.  When the dark
+   region shows no hot pixel (or there is none), gross outliers (beyond 6
+   robust s.d. of the log rates, the s.d. at least half a count relative to
+   the median count) are dropped instead: a hot pixel may sit in a flat
+   region while the dark region holds none.
 5. :func:`unmix` with second-order moments: ``1 + CV_a² = (1 + p²)(1 + s²)``,
    ``1 + CV_b² = (1 + cv_d²)(1 + s²)``, ``E[g/t] = E[1/t] = 1 + s²``.
 
@@ -134,20 +137,23 @@ def fit_dark(rate, good_dark, t: int, kappa2: float, sigma_q2: float
     return b_mean, max((var - samp) / b_mean**2, 0.0)
 
 
-def flat_samples(rate, flats, dark, hot, b_mean: float):
+def flat_samples(rate, flats, dark, hot, b_mean: float, t: int):
     """Per flat region: the pixel rates used and the hot-pixel (mean, variance) to remove."""
     f_hot = float(hot.sum()) / float(dark.sum()) if dark is not None else 0.0
     delta = float(rate[hot].mean()) - b_mean if hot.any() else 0.0
     flat_px, hot_terms = [], []
     for f in flats:
         x = rate[f]
+        if f_hot == 0:  # no hot pixel known: drop gross outliers (module notes)
+            lxs, m, s = _robust_log(x)
+            s = max(s, 0.5 / max(float(np.median(x)) * t, 1.0))
+            x = x[np.abs(lxs - m) <= 6 * s]
+            hot_terms.append((0.0, 0.0))
+            flat_px.append(x)
+            continue
         med = float(np.median(x))
         rsd = 1.4826 * float(np.median(np.abs(x - med)))
-        if dark is None:  # hot pixels unknown: drop gross outliers (6 robust s.d. in log)
-            lxs, m, s = _robust_log(x)
-            x = x[np.abs(lxs - m) <= 6 * max(s, 1e-9)] if s > 0 else x
-            hot_terms.append((0.0, 0.0))
-        elif delta > 0 and delta >= 8 * rsd:
+        if delta > 0 and delta >= 8 * rsd:
             x = x[x <= med + delta / 2]
             hot_terms.append((0.0, 0.0))
         else:
@@ -278,7 +284,7 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config):
                      f"default {DARK_FALLBACK['dark_current_spread']:g}")
     if not spread_known:
         cv_b2 = DARK_FALLBACK["dark_current_spread"] ** 2
-    flat_px, hot_terms = flat_samples(rate, flats, dark, hot, b_mean)
+    flat_px, hot_terms = flat_samples(rate, flats, dark, hot, b_mean, t)
     means = np.array([x.mean() - h[0] for x, h in zip(flat_px, hot_terms, strict=True)])
     _check_flat_means(means, flats, rate, t)
     lv, big_r, b_mean = fit_response(means, levels, b_mean, dark_known, notes)

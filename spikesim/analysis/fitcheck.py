@@ -114,12 +114,20 @@ def _counts(cap, n):
     return pixel_counts(cap, 0, n).astype(np.float64)
 
 
-def default_sensor_like(sensor):
+def default_sensor_like(sensor, scale_known: bool = True):
     """``sensor`` with the package's default :class:`~spikesim.noise.PhysicalNoise`
     (same ``fpn_seed``) and ``full_scale_rate`` chosen so the mean response
-    ``r·E[1/t] = r·(1 + s²)`` equals the fitted one: only the noise differs."""
+    ``r·E[1/t] = r·(1 + s²)`` equals the fitted one: only the noise differs.
+
+    ``scale_known=False`` (flat radiances unknown, so full scale is only the
+    brightest region): the currents relative to full scale
+    (``dark_current_rel``, ``hot_pixel_dark_rel``) keep their fitted values,
+    as the defaults' fractions of an arbitrary full scale mean nothing."""
     fitted = sensor.noise
     default = ss.noise.PhysicalNoise(fpn_seed=fitted.fpn_seed)
+    if not scale_known:
+        default = default.replace(dark_current_rel=fitted.dark_current_rel,
+                                  hot_pixel_dark_rel=fitted.hot_pixel_dark_rel)
     resp = sensor.full_scale_rate * (1 + fitted.threshold_mismatch**2)
     return sensor.replace(noise=default,
                           full_scale_rate=resp / (1 + default.threshold_mismatch**2))
