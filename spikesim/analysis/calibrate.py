@@ -43,7 +43,7 @@ from spikesim.analysis.calibration_config import (
     config_with,
 )
 from spikesim.analysis.capture import as_capture, pixel_counts, pixel_intervals
-from spikesim.analysis.regions import check_regions, detect_regions
+from spikesim.analysis.regions import check_regions, detect_regions, motion_score
 from spikesim.analysis.report import AnalysisResult
 from spikesim.errors import bad_value
 
@@ -64,16 +64,25 @@ class CalibrationResult(AnalysisResult):
     flat_levels: list | None = None
 
 
-def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress):
-    """(dark, flats, detected) from the masks or by detection."""
+def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
+    """(dark, flats, detected) from the masks or by detection.  Given flat masks
+    that fail the motion test of :mod:`spikesim.analysis.regions` get a note."""
     shape = (cap.height, cap.width)
     dark, flats = check_regions(dark_mask, flat_masks, shape)
-    if dark is not None or flats:
-        return dark, flats, False
-    if not cfg.detect:
+    if (dark is None and not flats) and not cfg.detect:
         raise bad_value("dark_mask/flat_masks", None, "masks, or detect=True")
     first = pixel_counts(cap, 0, n // 2, progress=progress) / (n // 2)
     second = (rate * n - first * (n // 2)) / (n - n // 2)
+    if dark is not None or flats:
+        change = (second - first) * (n / 2)
+        for i, f in enumerate(flats):
+            r, limit = motion_score(f, change)
+            if r > limit:
+                notes.append(f"flat_masks[{i}] does not look static: its pixels' count changes "
+                             f"between the capture's halves are correlated between neighbours "
+                             f"(r = {r:.3g} > {limit:.3g}); its intervals inflate the fitted "
+                             "temporal noise")
+        return dark, flats, False
     dark, flats = detect_regions(rate, n, min_pixels=cfg.min_pixels,
                                  halves=np.stack([first, second]))
     if not flats:
@@ -142,11 +151,13 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
         raise bad_value("capture length", f"{n} readouts",
                         f"at least {MIN_READOUTS} readouts for calibration")
     rate = pixel_counts(cap, 0, n, progress=progress) / n
-    dark, flats, detected = _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress)
+    region_notes: list[str] = []
+    dark, flats, detected = _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress,
+                                     region_notes)
     levels = _levels(flat_levels, flats)
     mom = pixel_intervals(cap, 0, n, progress=progress)
     params, diag, lv, hot = fit_parameters(rate, mom, n, dark, flats, levels, cfg)
-    notes = list(diag.pop("notes"))
+    notes = region_notes + list(diag.pop("notes"))
     sensor = _sensor(cap, params, notes)
     fit = None
     if cfg.check:

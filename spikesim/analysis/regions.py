@@ -41,7 +41,7 @@ import numpy as np
 
 from spikesim.errors import SpikeSimTypeError, bad_value
 
-__all__ = ["check_regions", "detect_regions", "as_mask"]
+__all__ = ["check_regions", "detect_regions", "as_mask", "motion_score"]
 
 
 def as_mask(mask, shape: tuple[int, int], name: str) -> np.ndarray:
@@ -146,6 +146,15 @@ def detect_regions(rate: np.ndarray, n_readouts: int, min_pixels: int = 64, tol:
 
 def _moving(comp: np.ndarray, change: np.ndarray) -> bool:
     """Neighbour correlation test of the count changes ``change`` over ``comp`` (notes)."""
+    r, limit = motion_score(comp, change)
+    return r > limit
+
+
+def motion_score(comp: np.ndarray, change: np.ndarray) -> tuple[float, float]:
+    """``(r, 4/sqrt(pairs))``: the neighbour correlation of the count changes
+    ``change`` (second half − first half, spikes) over the region ``comp`` and
+    the limit above which it is moving (module notes); ``(0, inf)`` when the
+    region has fewer than 16 adjacent pairs or no change at all."""
     a, b = [], []
     for sl0, sl1 in (((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
                      ((slice(None, -1), slice(None)), (slice(1, None), slice(None)))):
@@ -156,5 +165,5 @@ def _moving(comp: np.ndarray, change: np.ndarray) -> bool:
     x, y = x - x.mean(), y - y.mean()
     den = float(np.sqrt(np.sum(x * x) * np.sum(y * y)))
     if x.size < 16 or den == 0:
-        return False
-    return float(np.sum(x * y)) / den > 4.0 / np.sqrt(x.size)
+        return 0.0, float("inf")
+    return float(np.sum(x * y)) / den, 4.0 / float(np.sqrt(x.size))

@@ -180,3 +180,12 @@ def test_cli_short_study_and_no_charge_noise(tmp_path, strong):
                  "--no-progress"]) == 0
     rep = json.loads((tmp_path / "cal" / "calibration.json").read_text())
     assert rep["parameters"]["charge_noise_electrons"] == 0.0
+
+
+def test_given_masks_over_moving_content_get_a_warning(strong):
+    stream, dark, flats, _, _ = strong
+    texture = np.zeros_like(dark)
+    texture[4:-4, 70:-4] = True  # the sliding texture: not a static region
+    res = calibrate(stream, dark_mask=dark, flat_masks=[*flats, texture], check=False)
+    warned = [n for n in res.notes if "does not look static" in n]
+    assert len(warned) == 1 and warned[0].startswith("flat_masks[3]")
