@@ -14,6 +14,14 @@ pattern (``fpn_seed`` different from the fitted sensor's) and only
 ``D`` is reported with the critical value ``1.949·sqrt((n + m)/(n·m))`` of the
 two-sample test at α = 0.001 (Smirnov's asymptotic law); pooled intervals of
 one pixel are not independent, so for intervals it is a guide, not a test.
+
+Each check also carries the three summary distances of
+:mod:`spikesim.analysis.gof_stats` (rate KS, interval CV per rate bin,
+spatial spread).  :func:`compare_resimulations` runs the check for several
+sensors on the same scene and seed — the calibration compares its fitted
+sensor with :func:`default_sensor_like`, the package's default
+``PhysicalNoise`` at the fitted mean response, so the report shows which one
+re-simulates the capture more closely.
 """
 
 from __future__ import annotations
@@ -21,25 +29,11 @@ from __future__ import annotations
 import numpy as np
 
 import spikesim as ss
-from spikesim.analysis.capture import as_capture, pixel_intervals
+from spikesim.analysis.capture import as_capture, pixel_counts, pixel_intervals
+from spikesim.analysis.gof_stats import ks_critical, ks_distance, summary_distances
 
-__all__ = ["goodness_of_fit", "ks_distance", "ks_critical"]
-
-
-def ks_distance(a: np.ndarray, b: np.ndarray) -> float:
-    """Two-sample Kolmogorov–Smirnov statistic (largest gap between the empirical CDFs)."""
-    a, b = np.sort(np.asarray(a, float)), np.sort(np.asarray(b, float))
-    if a.size == 0 or b.size == 0:
-        return float("nan")
-    grid = np.concatenate([a, b])
-    fa = np.searchsorted(a, grid, side="right") / a.size
-    fb = np.searchsorted(b, grid, side="right") / b.size
-    return float(np.max(np.abs(fa - fb)))
-
-
-def ks_critical(n: int, m: int, c_alpha: float = 1.949) -> float:
-    """Critical two-sample KS distance (α = 0.001 for the default ``c_alpha``)."""
-    return c_alpha * np.sqrt((n + m) / (n * m)) if n and m else float("nan")
+__all__ = ["goodness_of_fit", "compare_resimulations", "default_sensor_like", "ks_distance",
+           "ks_critical"]
 
 
 def goodness_of_fit(cap, sensor, rate, dark, flats, levels, hot, n_readouts: int,
@@ -111,11 +105,41 @@ def goodness_of_fit(cap, sensor, rate, dark, flats, levels, hot, n_readouts: int
                 title=f"interval histogram, {name}")
         ax2.legend(fontsize=7)
 
+    summary = summary_distances(c_rate, s_rate, m_cap, m_sim, dark, flats)
     return {"n_readouts": n_readouts, "fpn_seed": sim_sensor.noise.fpn_seed, "seed": seed,
-            "regions": out, "headers": headers, "rows": rows, "plot": plot}
+            "regions": out, "summary": summary, "headers": headers, "rows": rows, "plot": plot}
 
 
 def _counts(cap, n):
-    from spikesim.analysis.capture import pixel_counts
-
     return pixel_counts(cap, 0, n).astype(np.float64)
+
+
+def default_sensor_like(sensor, scale_known: bool = True):
+    """``sensor`` with the package's default :class:`~spikesim.noise.PhysicalNoise`
+    (same ``fpn_seed``) and ``full_scale_rate`` chosen so the mean response
+    ``r·E[1/t] = r·(1 + s²)`` equals the fitted one: only the noise differs.
+
+    ``scale_known=False`` (flat radiances unknown, so full scale is only the
+    brightest region): the currents relative to full scale
+    (``dark_current_rel``, ``hot_pixel_dark_rel``) keep their fitted values,
+    as the defaults' fractions of an arbitrary full scale mean nothing."""
+    fitted = sensor.noise
+    default = ss.noise.PhysicalNoise(fpn_seed=fitted.fpn_seed)
+    if not scale_known:
+        default = default.replace(dark_current_rel=fitted.dark_current_rel,
+                                  hot_pixel_dark_rel=fitted.hot_pixel_dark_rel)
+    resp = sensor.full_scale_rate * (1 + fitted.threshold_mismatch**2)
+    return sensor.replace(noise=default,
+                          full_scale_rate=resp / (1 + default.threshold_mismatch**2))
+
+
+def compare_resimulations(cap, sensors: dict, rate, dark, flats, levels, hot, n_readouts: int,
+                          seed: int = 1, progress: bool = False) -> dict:
+    """:func:`goodness_of_fit` of each named sensor (same scene and seed) and a table
+    of the summary distances, one row per sensor; the smallest per column is closest."""
+    fits = {name: goodness_of_fit(cap, s, rate, dark, flats, levels, hot, n_readouts, seed=seed,
+                                  progress=progress) for name, s in sensors.items()}
+    headers = ["sensor", "rate KS (mean D)", "interval CV error", "spatial spread error"]
+    rows = [(name, f["summary"]["rate_ks"], f["summary"]["interval_cv_error"],
+             f["summary"]["spatial_spread_error"]) for name, f in fits.items()]
+    return {"fits": fits, "headers": headers, "rows": rows}

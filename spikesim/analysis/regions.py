@@ -8,15 +8,29 @@ map when no mask is given:
 
 1. the rate map is median filtered (5 × 5), which removes the fixed pattern
    and hot pixels but keeps region edges;
-2. the filtered values are clustered in one dimension: sorted, a new cluster
-   starts wherever consecutive values differ by more than
-   ``tol·value + 3/T`` (three counts over the capture);
-3. each cluster is split into connected components, eroded by two pixels
-   (the filter radius: edges mix two levels), and kept when it holds at least ``min_pixels``
-   pixels and, unless dark, its filtered values spread by at most ``tol``
-   (relative inter-quartile range; a ramp forms one wide cluster and is
-   rejected);
-4. components whose median rate is at most ``dark_rate`` spikes per readout
+2. *locally flat* pixels are kept: the range (max − min) of the filtered
+   map over the pixel's 5 × 5 neighbourhood is at most
+   ``2·tol·value + 2/T`` (two counts over the capture: short captures
+   quantise rates coarsely).  This separates uniform areas from textured or
+   moving content whose rates fill the gaps between them; pixels at most
+   ``dark_rate`` are always kept (the dark current varies a lot between
+   pixels);
+3. the filtered values of the kept pixels are clustered in one dimension:
+   sorted, a new cluster starts wherever consecutive values differ by more
+   than ``tol·value + 3/T`` (three counts over the capture);
+4. each cluster is split into connected components, eroded (dark: two
+   pixels, the filter radius, as edges mix two levels; flat: one pixel, the
+   range test has already removed the edges) and kept when it holds at
+   least ``min_pixels`` pixels and, unless dark, the inter-quartile range of
+   its filtered values is at most ``tol·median + 1/T`` (a ramp forms one wide
+   cluster and is rejected) and, when ``halves`` are given, its pixels'
+   count changes between the halves ``d_i`` are uncorrelated between
+   neighbours: in a static region they are independent temporal noise, in
+   moving content neighbours change together.  The component is rejected
+   when ``r = Σ d_i·d_j / sqrt(Σ d_i²·Σ d_j²)`` over horizontally and
+   vertically adjacent pairs exceeds ``4/sqrt(pairs)`` (four standard errors
+   of a correlation of independent pairs);
+5. components whose median rate is at most ``dark_rate`` spikes per readout
    form the dark mask; the others are flat regions, ordered by rate; regions
    within 2 % of one spike per readout are saturated and dropped.
 """
@@ -27,7 +41,7 @@ import numpy as np
 
 from spikesim.errors import SpikeSimTypeError, bad_value
 
-__all__ = ["check_regions", "detect_regions", "as_mask"]
+__all__ = ["check_regions", "detect_regions", "as_mask", "motion_score"]
 
 
 def as_mask(mask, shape: tuple[int, int], name: str) -> np.ndarray:
@@ -78,23 +92,41 @@ def check_regions(dark_mask, flat_masks, shape) -> tuple[np.ndarray | None, list
 
 
 def detect_regions(rate: np.ndarray, n_readouts: int, min_pixels: int = 64, tol: float = 0.1,
-                   dark_rate: float = 0.02) -> tuple[np.ndarray | None, list[np.ndarray]]:
-    """Find dark and flat regions in an (H, W) rate map (spikes per readout); see module notes."""
+                   dark_rate: float = 0.02, halves: np.ndarray | None = None
+                   ) -> tuple[np.ndarray | None, list[np.ndarray]]:
+    """Find dark and flat regions in an (H, W) rate map (spikes per readout); see module notes.
+
+    ``halves``: optional (2, H, W) rates (spikes per readout) over the first and
+    the second half of the capture, for the steadiness test.
+    """
     from scipy import ndimage
 
     rate = np.asarray(rate, dtype=np.float64)
+    t = float(n_readouts)
     sm = ndimage.median_filter(rate, size=5, mode="nearest")
-    v = np.sort(sm.ravel())
-    gap = tol * v[1:] + 3.0 / n_readouts
-    cuts = np.flatnonzero(np.diff(v) > gap)
-    edges = np.concatenate([[v[0] - 1], v[cuts], [v[-1] + 1]])
-    cluster = np.searchsorted(edges, sm, side="left") - 1
+    spread = ndimage.maximum_filter(sm, size=5, mode="nearest") - \
+        ndimage.minimum_filter(sm, size=5, mode="nearest")
+    kept = (spread <= 2 * tol * sm + 2.0 / t) | (sm <= dark_rate)
+    if halves is not None:
+        h1, h2 = (ndimage.median_filter(np.asarray(x, np.float64), size=5, mode="nearest")
+                  for x in halves)
+        change = ndimage.maximum_filter(np.abs(h1 - h2), size=5, mode="nearest")
+        kept &= change <= tol * sm + 2.0 / (t / 2)
     dark = np.zeros(rate.shape, bool)
     flats = []
-    for c in np.unique(cluster):
+    if not kept.any():
+        return None, []
+    v = np.sort(sm[kept])
+    gap = tol * v[1:] + 3.0 / t
+    cuts = np.flatnonzero(np.diff(v) > gap)
+    edges = np.concatenate([[v[0] - 1], v[cuts], [v[-1] + 1]])
+    cluster = np.where(kept, np.searchsorted(edges, sm, side="left") - 1, -1)
+    for c in np.unique(cluster[kept]):
         lab, n = ndimage.label(cluster == c)
         for k in range(1, n + 1):
-            comp = ndimage.binary_erosion(lab == k, iterations=2)
+            region = lab == k
+            is_dark = float(np.median(sm[region])) <= dark_rate
+            comp = ndimage.binary_erosion(region, iterations=2 if is_dark else 1)
             if comp.sum() < min_pixels:
                 continue
             vals = sm[comp]
@@ -102,9 +134,36 @@ def detect_regions(rate: np.ndarray, n_readouts: int, min_pixels: int = 64, tol:
             q1, q3 = np.percentile(vals, [25, 75])
             if med <= dark_rate:  # dark current varies a lot between pixels: no flatness test
                 dark |= comp
-            elif (q3 - q1) / med > tol:
+            elif q3 - q1 > tol * med + 1.0 / t:
+                continue
+            elif halves is not None and _moving(comp, (halves[1] - halves[0]) * (t / 2)):
                 continue
             elif med < 0.98:
                 flats.append((med, comp))
-    flats.sort(key=lambda t: t[0])
+    flats.sort(key=lambda item: item[0])
     return (dark if dark.any() else None), [m for _, m in flats]
+
+
+def _moving(comp: np.ndarray, change: np.ndarray) -> bool:
+    """Neighbour correlation test of the count changes ``change`` over ``comp`` (notes)."""
+    r, limit = motion_score(comp, change)
+    return r > limit
+
+
+def motion_score(comp: np.ndarray, change: np.ndarray) -> tuple[float, float]:
+    """``(r, 4/sqrt(pairs))``: the neighbour correlation of the count changes
+    ``change`` (second half − first half, spikes) over the region ``comp`` and
+    the limit above which it is moving (module notes); ``(0, inf)`` when the
+    region has fewer than 16 adjacent pairs or no change at all."""
+    a, b = [], []
+    for sl0, sl1 in (((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
+                     ((slice(None, -1), slice(None)), (slice(1, None), slice(None)))):
+        both = comp[sl0] & comp[sl1]
+        a.append(change[sl0][both])
+        b.append(change[sl1][both])
+    x, y = np.concatenate(a), np.concatenate(b)
+    x, y = x - x.mean(), y - y.mean()
+    den = float(np.sqrt(np.sum(x * x) * np.sum(y * y)))
+    if x.size < 16 or den == 0:
+        return 0.0, float("inf")
+    return float(np.sum(x * y)) / den, 4.0 / float(np.sqrt(x.size))

@@ -1,8 +1,9 @@
 """``spikesim analyze STUDY``: noise studies written as a Markdown/JSON/PNG report.
 
 Studies: ``transfer``, ``isi``, ``snr``, ``quantization``, ``budget``,
-``calibrate`` (fit a sensor to a capture) and ``calibration-accuracy`` (the
-calibration proven on simulated captures).  The work is done by
+``calibrate`` (fit a sensor to a capture), ``calibration-accuracy`` (the
+calibration proven on simulated captures) and ``calibration-short`` (short
+moving captures: calibrated against default re-simulation).  The work is done by
 :mod:`spikesim.analysis`; this module only parses and prints.
 """
 
@@ -124,6 +125,9 @@ def register(subparsers) -> None:
                    help="assumed comparator jitter when E is fitted (default 0.006)")
     s.add_argument("--mismatch-split", type=float, default=None,
                    help="threshold-mismatch share of the response spread (default SCSim ratio)")
+    s.add_argument("--no-charge-noise", dest="charge_noise", action="store_false",
+                   help="keep charge_noise_electrons at 0 (default: fitted when the interval CV "
+                        "grows significantly with the interval length)")
     s.add_argument("--max-readouts", type=int, default=None)
     s.add_argument("--no-check", dest="check", action="store_false",
                    help="skip the re-simulation goodness-of-fit check")
@@ -143,6 +147,15 @@ def register(subparsers) -> None:
     s.add_argument("--name", default="calibration", help="file stem (default calibration)")
     s.add_argument("--no-progress", dest="progress", action="store_false")
     s.set_defaults(func=_run_accuracy)
+
+    s = sub.add_parser("calibration-short",
+                       help="calibrate short moving captures: calibrated vs default re-simulation")
+    s.add_argument("--out", required=True)
+    s.add_argument("--size", default="48x128")
+    s.add_argument("--readouts", type=int, default=200)
+    s.add_argument("--seeds", default="0,1,2", help="comma-separated simulation seeds")
+    s.add_argument("--no-progress", dest="progress", action="store_false")
+    s.set_defaults(func=_run_short)
 
 
 def _write(result, args, name=None) -> int:
@@ -224,8 +237,8 @@ def _run_calibrate(args) -> int:
         electrons_per_threshold=args.electrons, temporal_threshold_noise=args.sigma_t,
         mismatch_split=DEFAULT_MISMATCH_SPLIT if args.mismatch_split is None
         else args.mismatch_split,
-        max_readouts=args.max_readouts, check=args.check, check_seed=args.seed,
-        progress=args.progress)
+        fit_charge_noise=args.charge_noise, max_readouts=args.max_readouts, check=args.check,
+        check_seed=args.seed, progress=args.progress)
     paths = write_report(res, args.out)
     sensor_path = Path(args.out) / "sensor.json"
     sensor_path.write_text(res.sensor.to_json() + "\n")
@@ -241,3 +254,15 @@ def _run_accuracy(args) -> int:
     res = calibration_accuracy(size=_size(args.size), n_readouts=args.readouts, seed=args.seed,
                                progress=args.progress)
     return _write(res, args, name=args.name)
+
+
+def _run_short(args) -> int:
+    from spikesim.analysis.short_capture import short_capture_fidelity
+
+    try:
+        seeds = [int(v) for v in args.seeds.split(",") if v.strip()]
+    except ValueError:
+        raise bad_value("--seeds", args.seeds, "comma-separated integers, e.g. 0,1,2") from None
+    res = short_capture_fidelity(size=_size(args.size), n_readouts=args.readouts, seeds=seeds,
+                                 progress=args.progress)
+    return _write(res, args)

@@ -123,8 +123,10 @@ def test_calibrate_from_files_and_cli(capture, tmp_path):
 def test_bad_inputs(capture):
     stream, dark, flats, _ = capture
     spikes = stream.unpack(start=0, stop=1200)
-    with pytest.raises(SpikeSimValueError, match="capture length.*at least 1000"):
-        calibrate(spikes[:500], dark_mask=dark, flat_masks=flats)
+    with pytest.raises(SpikeSimValueError, match="capture length.*199 readouts.*at least 200"):
+        calibrate(spikes[:199], dark_mask=dark, flat_masks=flats)
+    with pytest.raises(SpikeSimValueError, match="capture length.*150 readouts.*at least 200"):
+        calibrate(spikes, dark_mask=dark, flat_masks=flats, max_readouts=150)
     with pytest.raises(SpikeSimValueError, match=r"dark_mask.shape=\(64, 32\)"):
         calibrate(spikes, dark_mask=dark[:, :32], flat_masks=flats)
     with pytest.raises(SpikeSimValueError, match=r"flat_masks\[1\].shape"):

@@ -1,0 +1,155 @@
+"""Temporal noise from per-pixel interval statistics: cycle CV² κ² and charge noise σ_q².
+
+For a pixel of mean interval ``m`` readouts (charge ``q = 1/m`` thresholds per
+readout) the clocked inter-spike interval has variance
+(:func:`spikesim.analysis.theory.isi_var_theory`)::
+
+    Var(ISI) = κ²·m² + σ_q²·m³ + F(m, sd),   sd² = κ²·m² + σ_q²·m³
+
+where κ² is the per-cycle CV² (comparator jitter and shot noise), σ_q² the
+per-readout variance of an accumulating charge noise (thresholds², its
+first-passage time is inverse Gaussian) and ``F`` the clock's rounding term
+(:func:`spikesim.analysis.theory.frac_variance`).  Per-cycle noise alone gives
+a CV² that does not depend on ``m``; the charge noise makes it grow as
+``κ² + σ_q²·m``.
+
+Each pixel's sample variance ``v_i`` over ``n_i`` intervals has variance
+``≈ 2·V_i²/(n_i − 1)``; (κ², σ_q²) are fitted by weighted least squares on
+``v_i − F_i`` with weights ``(n_i − 1)/(2·V_i²)``, ``V_i`` the model of the
+previous iteration (five fixed-point iterations, both terms kept ≥ 0).  The
+significance of σ_q² comes from the same fit with free signs: its WLS
+standard error, inflated by the reduced χ² when that exceeds 1 (pixels that
+are not exactly stationary).  σ_q² is kept only when the data supports it:
+a ratio of at least ``MIN_SPAN`` between the 90th and the 10th percentile of
+the pixels' mean intervals, and the free estimate at least ``MIN_Z``
+standard errors above 0; otherwise the one-term fit (σ_q² = 0) is used and
+the reason is returned.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from spikesim.analysis import theory
+from spikesim.errors import bad_value
+
+__all__ = ["TemporalFit", "fit_temporal", "MIN_SPAN", "MIN_Z"]
+
+#: Least ratio of the 90th to the 10th percentile of the mean intervals for a slope.
+MIN_SPAN = 1.5
+#: Least significance (standard errors) of σ_q² for it to be kept.
+MIN_Z = 3.0
+
+
+@dataclass(frozen=True)
+class TemporalFit:
+    """κ² (per-cycle CV²), σ_q² (thresholds² per readout) and how they were found."""
+
+    kappa2: float
+    sigma_q2: float
+    sigma_q2_estimate: float  # the two-term estimate, kept or not
+    sigma_q2_se: float
+    charge_noise_fitted: bool
+    reason: str
+    n_pixels: int
+    n_intervals: int
+    interval_span: tuple[float, float]  # 10th and 90th percentile of the mean intervals
+
+
+def _select(mom, mask, min_mean, min_n):
+    sel = mask & (mom.n >= min_n)
+    mean = mom.mean()[sel]
+    keep = mean >= min_mean
+    return mean[keep], mom.var()[sel][keep], mom.n[sel][keep].astype(np.float64)
+
+
+def _wls(mean, var, n, two_terms: bool, iterations: int = 5, nonneg: bool = True):
+    """Fixed-point WLS of (κ², σ_q²); returns (κ², σ_q², covariance scale, cov).
+
+    ``nonneg=False`` leaves the coefficients free (for the significance of σ_q²);
+    the model variance of the weights is always kept ≥ 0."""
+    k2, c = 0.0, 0.0
+    cols = [mean**2, mean**3] if two_terms else [mean**2]
+    x = np.stack(cols, axis=1)
+    cov = np.zeros((x.shape[1], x.shape[1]))
+    chi2 = 1.0
+    for _ in range(iterations):
+        sd = np.sqrt(np.maximum(k2 * mean**2 + c * mean**3, 0.0))
+        f = theory.frac_variance(mean, sd)
+        v_model = np.maximum(k2 * mean**2 + c * mean**3 + f, 1e-3)
+        w = (n - 1) / (2 * v_model**2)
+        y = var - f
+        if nonneg:
+            beta, cov = _solve_nonneg(x, y, w)
+        else:
+            a = x.T @ (w[:, None] * x)
+            cov = np.linalg.inv(a)
+            beta = cov @ (x.T @ (w * y))
+        k2 = float(beta[0])
+        c = float(beta[1]) if two_terms else 0.0
+        resid = y - x @ beta
+        dof = max(mean.size - x.shape[1], 1)
+        chi2 = float(np.sum(w * resid**2)) / dof
+    return k2, c, max(chi2, 1.0), cov
+
+
+def _solve_nonneg(x, y, w):
+    """Weighted least squares with every coefficient ≥ 0 (drop negative ones, refit)."""
+    active = list(range(x.shape[1]))
+    beta = np.zeros(x.shape[1])
+    while active:
+        xa = x[:, active]
+        a = xa.T @ (w[:, None] * xa)
+        b = xa.T @ (w * y)
+        sol = np.linalg.solve(a, b)
+        if np.all(sol >= 0):
+            beta[:] = 0.0
+            beta[active] = sol
+            cov = np.zeros((x.shape[1], x.shape[1]))
+            cov[np.ix_(active, active)] = np.linalg.inv(a)
+            return beta, cov
+        active.pop(int(np.argmin(sol)))
+    return beta, np.zeros((x.shape[1], x.shape[1]))
+
+
+def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0,
+                 min_n: int = 3) -> TemporalFit:
+    """Fit κ² and, when supported, σ_q² to the pixels of ``mask`` (see module notes).
+
+    Parameters
+    ----------
+    mom : :class:`spikesim.analysis.capture.IntervalMoments`
+    mask : (H, W) bool
+        Pixels of stationary rate (dark and flat regions, hot pixels removed).
+    min_mean, min_n :
+        Pixels used: mean interval ≥ ``min_mean`` readouts (the rounding term
+        dominates below) and at least ``min_n`` intervals.
+    """
+    mean, var, n = _select(mom, mask, min_mean, min_n)
+    if mean.size == 0:
+        raise bad_value("capture length", f"no pixel with >= {min_n} intervals of >= "
+                        f"{min_mean:g} readouts", "a longer capture, or flat regions of "
+                        f"<= {1 / min_mean:g} spikes per readout, to measure temporal noise")
+    lo, hi = (float(v) for v in np.percentile(mean, [10, 90]))
+    k1, _, _, _ = _wls(mean, var, n, two_terms=False)
+    common = dict(n_pixels=int(mean.size), n_intervals=int(n.sum()), interval_span=(lo, hi))
+    if not fit_charge_noise:
+        return TemporalFit(k1, 0.0, float("nan"), float("nan"), False,
+                           "charge noise not fitted (fit_charge_noise=False)", **common)
+    if mean.size < 3 or hi < MIN_SPAN * lo:
+        return TemporalFit(k1, 0.0, float("nan"), float("nan"), False,
+                           f"mean intervals span {lo:.3g}-{hi:.3g} readouts (10th-90th "
+                           f"percentile), less than x{MIN_SPAN:g}: no slope of CV² to fit",
+                           **common)
+    _, c_free, scale, cov = _wls(mean, var, n, two_terms=True, nonneg=False)
+    se = float(np.sqrt(max(cov[1, 1], 0.0) * scale))
+    k2, c, _, _ = _wls(mean, var, n, two_terms=True)
+    if c_free > 0 and c_free >= MIN_Z * se and c > 0:
+        return TemporalFit(k2, c, c, se, True,
+                           f"CV² grows with the interval: σ_q² = {c:.3g} ± {se:.2g} "
+                           "thresholds² per readout", **common)
+    return TemporalFit(k1, 0.0, c_free, se, False,
+                       f"CV² slope not significant (σ_q² = {c_free:.3g} ± {se:.2g}, needs "
+                       f"{MIN_Z:g} standard errors): charge noise kept at 0", **common)
