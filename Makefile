@@ -17,7 +17,7 @@ $(STAMP): setup.cfg pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/spikesim demo
+	$(BIN)/spikejdd demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
