@@ -1,4 +1,4 @@
-"""Image quality metrics per DESIGN.md §3: PSNR and SSIM on RGB, peak 1.0.
+"""Image quality metrics: PSNR and SSIM on RGB, peak 1.0 (docs/architecture.md, Conventions).
 
 Conventions (fixed; every score carries its label):
 

@@ -1,6 +1,6 @@
 """spikesim: a physics-faithful simulator of Bayer integrate-and-fire spike cameras.
 
-Public API (DESIGN.md §4)::
+Public API (README.md, "Using the library"; docs/architecture.md)::
 
     import spikesim as ss
     sensor = ss.Sensor.preset("color-1000x1000-20k")

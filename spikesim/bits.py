@@ -1,4 +1,4 @@
-"""Bit packing of spike frames (DESIGN.md §3).
+"""Bit packing of spike frames (docs/architecture.md, Conventions).
 
 Spikes are packed along the width axis with *little* bit order: pixel ``x`` of a
 row lives in byte ``x // 8``, bit ``x % 8`` (LSB first), ``ceil(W/8)`` bytes per

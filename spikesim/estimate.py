@@ -2,7 +2,7 @@
 
 Both estimators return **scene units**: linear light, relative, where 1.0 is the
 intensity at which the sensor fires ``rate`` spikes per readout (``rate`` is the
-sensor's ``full_scale_rate``, DESIGN.md §2).  A perfect (noise-free, clocked)
+sensor's ``full_scale_rate``, docs/model.md).  A perfect (noise-free, clocked)
 stream of constant intensity ``I`` therefore returns ``I``, up to the
 quantization error of the window (see each function).
 

@@ -1,7 +1,7 @@
 """Sensor configuration: geometry, clock, integrate-and-fire parameters, noise.
 
 The physics these parameters feed is in ``spikesim/_kernels.py`` and
-DESIGN.md §2.  A pixel integrates ``A(t) = ∫ η I dτ`` and fires when ``A``
+docs/model.md.  A pixel integrates ``A(t) = ∫ η I dτ`` and fires when ``A``
 reaches the threshold θ (Dong et al., AAAI 2024, eq. 1); the sensor checks
 every pixel once per readout period ``1/clock_hz`` and emits one bit.
 

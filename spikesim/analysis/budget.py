@@ -9,7 +9,7 @@ so every run draws identical random numbers for the sources it shares, see
 * **none**: the clean twin of the *all* run (same seed and initial state).
 
 Each stream is reconstructed at the same readouts and scored against the
-ground truth with PSNR (peak 1, clamp to [0, 1], no crop; DESIGN.md §3).
+ground truth with PSNR (peak 1, clamp to [0, 1], no crop; docs/architecture.md, Conventions).
 
 Cost of a source (dB): ``cost_s = PSNR(all − s) − PSNR(all)``; total cost
 ``PSNR(none) − PSNR(all)``.  How costs "sum": decibels do not add, but for
@@ -75,7 +75,7 @@ def noise_sources(noise) -> dict[str, dict]:
 
 
 def psnr(x: np.ndarray, ref: np.ndarray) -> float:
-    """PSNR in dB, peak 1.0, both clamped to [0, 1] (DESIGN.md §3)."""
+    """PSNR in dB, peak 1.0, both clamped to [0, 1] (docs/architecture.md, Conventions)."""
     mse = float(np.mean((np.clip(x, 0, 1) - np.clip(ref, 0, 1)) ** 2))
     return 10 * np.log10(1.0 / mse) if mse > 0 else np.inf
 

@@ -1,7 +1,7 @@
 """Quantization noise: clocked readout against the ideal asynchronous reference.
 
 The clocked sensor reports readout ``n`` as 1 when at least one threshold
-crossing lies in ``(n, n+1]`` (DESIGN.md §2); the exact crossing times of the
+crossing lies in ``(n, n+1]`` (docs/model.md); the exact crossing times of the
 same noise-free sensor come from :func:`spikesim.ideal_spike_times`.  For a
 flat field of radiance ``I`` (charge ``q_i`` thresholds per readout) this
 study reports:

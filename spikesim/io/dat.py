@@ -1,6 +1,6 @@
 """PKU ``.dat`` spike files: read (memory-mapped, windowed) and write (atomic).
 
-The format (DESIGN.md §3), as written by the PKU spike cameras and read by
+The format (docs/io.md, docs/architecture.md), as written by the PKU spike cameras and read by
 SpikeCV, Spike-Zoo and the SJDD-Net code:
 
 * no header; the file is a sequence of frames (readouts), nothing else;

@@ -1,4 +1,4 @@
-"""spikesim HDF5 files, format version 1 (DESIGN.md §3): streaming writer, lazy reader.
+"""spikesim HDF5 files, format version 1 (docs/io.md): streaming writer, lazy reader.
 
 One sequence per file, everything at the root:
 

@@ -1,6 +1,6 @@
 """Photometry: turn stored frame values into linear-light radiance.
 
-Scene radiance in spikesim is *linear light, relative units* (DESIGN.md §2):
+Scene radiance in spikesim is *linear light, relative units* (docs/model.md):
 1.0 per channel is full scale, the light at which a pixel fires
 ``full_scale_rate`` spikes per readout.  Video frames are usually stored
 sRGB-encoded, so they are decoded with the sRGB electro-optical transfer
