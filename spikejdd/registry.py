@@ -396,5 +396,14 @@ def reconstruct(
     **options
         Passed to the method (e.g. ``no_spike`` for TFI pipelines, ``weights``
         and ``device`` for SJDD-Net).
+
+    Examples
+    --------
+    >>> import spikesim as ss, spikejdd as sj
+    >>> scene = ss.scenes.procedural("astronaut", size=(16, 16))
+    >>> stream = ss.simulate(scene, ss.Sensor(height=16, width=16), 41)
+    >>> rgb = sj.reconstruct(stream.unpack(), "RGGB", "tfp+menon2007", center=20)
+    >>> rgb.shape, rgb.dtype
+    ((16, 16, 3), dtype('float64'))
     """
     return call_method(METHODS.get(method), spikes, cfa, center, rate=rate, **options)

@@ -459,6 +459,19 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
     Returns
     -------
     SpikeStream
+
+    Examples
+    --------
+    Half of full scale on an ideal monochrome sensor fires 0.3 spikes per readout
+    (``full_scale_rate`` 0.6), exactly:
+
+    >>> import numpy as np, spikesim as ss
+    >>> sensor = ss.Sensor(height=4, width=8, cfa=None)
+    >>> stream = ss.simulate(ss.scenes.Static(np.full((4, 8), 0.5)), sensor, 100, seed=0)
+    >>> stream.packed.shape  # (T, H, ceil(W / 8)) bytes
+    (100, 4, 1)
+    >>> float(stream.unpack().mean()), stream.gt.shape, stream.gt_index.tolist()
+    (0.3, (1, 4, 8, 3), [50])
     """
     run = SimulationRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
                         chunk_readouts, progress)

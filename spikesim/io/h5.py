@@ -348,6 +348,17 @@ def write_h5(path: str | os.PathLike, source, compression: str = DEFAULT_COMPRES
 
     A run is consumed chunk by chunk and never held whole in memory.  The file
     appears under ``path`` only once complete.  Returns the path.
+
+    Examples
+    --------
+    >>> import spikesim as ss
+    >>> scene = ss.scenes.procedural("astronaut", size=(16, 16))
+    >>> stream = ss.simulate(scene, ss.Sensor(height=16, width=16), 41)
+    >>> ss.io.write_h5("seq.h5", stream)
+    PosixPath('seq.h5')
+    >>> back = ss.io.read_h5("seq.h5")
+    >>> bool((back.packed == stream.packed).all()), back.gt.shape, back.gt_index.tolist()
+    (True, (1, 16, 16, 3), [20])
     """
     meta = getattr(source, "meta", None)
     if not isinstance(meta, dict):
