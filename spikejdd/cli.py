@@ -387,7 +387,7 @@ def _write_png(path, rgb8) -> None:
     import cv2
 
     from spikesim.errors import SpikeSimFileError
-    from spikesim.io._atomic import atomic_path
+    from spikesim.io.atomic import atomic_path
 
     ok, png = cv2.imencode(".png", rgb8[..., ::-1])
     if not ok:

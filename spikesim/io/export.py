@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from spikesim.errors import SpikeSimFormatError, SpikeSimValueError, bad_value
-from spikesim.io._atomic import atomic_path
+from spikesim.io.atomic import atomic_path
 from spikesim.io.dat import DatWriter
 from spikesim.io.index import Dataset, open_dataset
 from spikesim.srgb import linear_to_srgb

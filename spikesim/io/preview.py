@@ -78,7 +78,7 @@ def save_image(path, frames: list[np.ndarray], fps: float = 10.0) -> None:
     """Write one frame as PNG, or several as an animated GIF (by the file suffix)."""
     from PIL import Image
 
-    from spikesim.io._atomic import atomic_path
+    from spikesim.io.atomic import atomic_path
 
     suffix = str(path).lower().rsplit(".", 1)[-1]
     if suffix not in ("png", "gif"):

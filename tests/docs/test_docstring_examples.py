@@ -38,7 +38,7 @@ MODULES = [m for m in _modules() if _examples(m)]
 def test_the_public_entry_points_have_examples():
     documented = {t.name for m in MODULES for t in _examples(m)}
     for name in ("spikesim.simulate.simulate", "spikesim.sensor.Sensor.preset",
-                 "spikesim.io.h5.write_h5", "spikesim.estimate.tfp",
+                 "spikesim.io.h5.writer.write_h5", "spikesim.estimate.tfp",
                  "spikejdd.registry.reconstruct"):
         assert name in documented, f"{name} has no Examples section"
 
