@@ -25,7 +25,8 @@ from spikesim.errors import (
 )
 from spikesim.ideal import ideal_spike_times
 from spikesim.sensor import Sensor, list_presets
-from spikesim.simulate import SimulationRun, SpikeChunk, SpikeStream, simulate, simulate_chunks
+from spikesim.simulate import SimulationRun, simulate, simulate_chunks
+from spikesim.stream import SpikeChunk, SpikeSource, SpikeStream, pixel_counts
 from spikesim.workload import RunawayWorkWarning
 
 __all__ = [
@@ -37,6 +38,8 @@ __all__ = [
     "SimulationRun",
     "SpikeStream",
     "SpikeChunk",
+    "SpikeSource",
+    "pixel_counts",
     "ideal_spike_times",
     "bits",
     "io",

@@ -14,7 +14,8 @@ import numbers
 
 from spikesim.errors import bad_value
 
-__all__ = ["MAX_READOUTS", "check_cli_numbers", "check_int", "check_real", "is_int", "is_real"]
+__all__ = ["MAX_READOUTS", "check_cli_numbers", "check_crop", "check_int", "check_real",
+           "check_window", "is_int", "is_real"]
 
 
 def is_int(value) -> bool:
@@ -104,3 +105,39 @@ def check_cli_numbers(args) -> None:
         value = getattr(args, dest, None)
         if is_real(value):
             check_real("--" + dest.replace("_", "-"), value, low, high, low_open=True, unit=unit)
+
+
+def check_window(start: int, length: int | None, n_readouts: int) -> tuple[int, int]:
+    """Validate ``start``/``length`` against a stream of ``n_readouts``; ``None`` = to the end."""
+    if not is_int(start) or not 0 <= start < n_readouts:
+        raise bad_value("start", start, f"an integer readout index in [0, {n_readouts - 1}]")
+    start = int(start)
+    if length is None:
+        return start, n_readouts - start
+    if not is_int(length) or not 1 <= length <= n_readouts - start:
+        raise bad_value(
+            "length", length,
+            f"an integer in [1, {n_readouts - start}] (the stream has {n_readouts} readouts, "
+            f"start={start})",
+        )
+    return start, int(length)
+
+
+def check_crop(crop: tuple | None, height: int, width: int) -> tuple[int, int, int, int]:
+    """Validate ``crop = (top, left, h, w)`` inside an ``height × width`` frame."""
+    if crop is None:
+        return 0, 0, height, width
+    try:
+        top, left, h, w = crop
+    except (TypeError, ValueError):
+        raise bad_value("crop", crop, "None or (top, left, height, width)") from None
+    if not all(is_int(v) for v in (top, left, h, w)):
+        raise bad_value("crop", crop, "four integers (top, left, height, width)")
+    if not (0 <= top and 0 <= left and h >= 1 and w >= 1 and top + h <= height
+            and left + w <= width):
+        raise bad_value(
+            "crop", tuple(int(v) for v in crop),
+            f"(top, left, height, width) with top+height <= {height}, left+width <= {width}, "
+            "all >= 0 and sizes >= 1",
+        )
+    return int(top), int(left), int(h), int(w)

@@ -29,11 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
+from spikesim._validate import check_crop, check_window
 from spikesim.cfa import normalize_cfa
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimTypeError, bad_value
 from spikesim.io._decode import decode_frames
 from spikesim.io._guard import write_error
-from spikesim.io._window import check_crop, check_window
 from spikesim.io.atomic import atomic_path, lock_temp
 
 __all__ = [

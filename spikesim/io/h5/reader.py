@@ -13,9 +13,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from spikesim._validate import check_crop, check_window
+from spikesim.bits import crop_packed
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, bad_value
 from spikesim.io._compression import have_hdf5plugin
-from spikesim.io._window import check_crop, check_window, crop_packed
 from spikesim.io.h5.format import READ_CACHE_BYTES, header_of
 
 __all__ = ["Sequence", "open_h5", "read_h5", "read_header"]
@@ -162,7 +163,7 @@ class Sequence:
 
     def to_stream(self):
         """Load everything into a ``SpikeStream`` (needs ``spikesim.simulate``)."""
-        from spikesim.simulate import SpikeStream
+        from spikesim.stream import SpikeStream
 
         return SpikeStream(
             packed=self.read_packed(),
