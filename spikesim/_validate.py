@@ -14,8 +14,9 @@ import numbers
 
 from spikesim.errors import bad_value
 
-__all__ = ["MAX_READOUTS", "check_cli_numbers", "check_crop", "check_int", "check_real",
-           "check_window", "is_int", "is_real"]
+__all__ = ["MAX_READOUTS", "check_cli_numbers", "check_crop", "check_int", "check_positive",
+           "check_real", "check_size", "check_time", "check_window", "is_int",
+           "is_real"]
 
 
 def is_int(value) -> bool:
@@ -141,3 +142,39 @@ def check_crop(crop: tuple | None, height: int, width: int) -> tuple[int, int, i
             "all >= 0 and sizes >= 1",
         )
     return int(top), int(left), int(h), int(w)
+
+
+def check_positive(name: str, value: object, allow_none: bool = False) -> float | None:
+    """Validate a finite, strictly positive number (``None`` allowed if ``allow_none``)."""
+    if value is None and allow_none:
+        return None
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        v = math.nan
+    if isinstance(value, bool) or not math.isfinite(v) or v <= 0:
+        raise bad_value(name, value, "a finite number > 0")
+    return v
+
+
+def check_time(t: object) -> float:
+    """Validate a time in seconds (finite real)."""
+    try:
+        v = float(t)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise bad_value("t", t, "a finite time in seconds") from None
+    if not math.isfinite(v):
+        raise bad_value("t", t, "a finite time in seconds")
+    return v
+
+
+def check_size(size: object) -> tuple[int, int]:
+    """Validate ``size=(H, W)`` in pixels, each an integer >= 1."""
+    try:
+        h, w = size  # type: ignore[misc]
+        ok = all(is_int(v) for v in (h, w))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or h < 1 or w < 1:
+        raise bad_value("size", size, "(H, W) with integers H >= 1 and W >= 1")
+    return int(h), int(w)

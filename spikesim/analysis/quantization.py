@@ -31,9 +31,10 @@ from __future__ import annotations
 import numpy as np
 
 import spikesim as ss
+from spikesim._validate import check_size
 from spikesim.analysis import theory
 from spikesim.analysis.report import AnalysisResult
-from spikesim.analysis.sweep import check_levels, check_sensor, check_size
+from spikesim.analysis.sweep import check_levels, check_sensor
 from spikesim.errors import bad_value
 from spikesim.estimate import tfi, tfp_std
 from spikesim.noise import fixed_pattern
