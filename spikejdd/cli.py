@@ -62,6 +62,14 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--panels", type=int, default=6,
                     help="image panels (GT and every method, same crop) in the report")
     sub.add_parser("methods", help="list reconstruction methods")
+    dm = sub.add_parser("demo", help="the main job on built-in scenes: build a small dataset, "
+                                     "preview it, reconstruct it and write report.md")
+    dm.add_argument("--out", default="demo_out", help="output folder (default: demo_out)")
+    dm.add_argument("--size", type=int, default=None, help="frame side in pixels (default 256)")
+    dm.add_argument("--limit", type=int, default=None, help="only the first N sequences")
+    dm.add_argument("--methods", default=None,
+                    help="comma-separated methods (default: four classical pipelines and sjdd)")
+    _runtime_options(dm)
     _train_parser(sub)
     _reconstruct_parser(sub)
     return p
@@ -285,13 +293,13 @@ def _centers(text: str | None, default: list[int]) -> list[int]:
 def _reconstruct(args) -> int:
     from pathlib import Path
 
-    import numpy as np
     from tqdm import tqdm
 
     from spikejdd.evaluate import panel_image
     from spikejdd.registry import call_method, get_method
     from spikesim.estimate import window_bounds
     from spikesim.io import resolve_dataset
+    from spikesim.srgb import linear_to_srgb8
 
     src = Path(args.input)
     out = Path(args.out)
@@ -348,7 +356,7 @@ def _reconstruct(args) -> int:
             rgb = call_method(m, spikes, cfa, c - start, rate=rate, **options)
             used[m.name] = m.window_for(length)
             tiles.append(rgb)
-            img = (np.clip(_srgb(rgb), 0, 1) * 255 + 0.5).astype(np.uint8)
+            img = linear_to_srgb8(rgb)
             path = out / f"{src.stem}_{_slug(m.name)}_{c:06d}.png"
             _write_png(path, img)
             written.append(path)
@@ -365,14 +373,6 @@ def _reconstruct(args) -> int:
     return 0
 
 
-def _srgb(rgb):
-    import numpy as np
-
-    from spikejdd.metrics import srgb_encode
-
-    return srgb_encode(np.clip(rgb, 0, 1))
-
-
 def _slug(name: str) -> str:
     import re
 
@@ -387,13 +387,32 @@ def _write_png(path, rgb8) -> None:
     import cv2
 
     from spikesim.errors import SpikeSimFileError
-    from spikesim.io._atomic import atomic_path
+    from spikesim.io.atomic import atomic_path
 
     ok, png = cv2.imencode(".png", rgb8[..., ::-1])
     if not ok:
         raise SpikeSimFileError(f"could not encode {str(path)!r} as PNG")
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(png.tobytes())
+
+
+def _demo(args) -> int:
+    from spikejdd.demo import run_demo
+    from spikesim.commands.demo import print_sequences
+
+    r = run_demo(args.out, size=args.size, limit=args.limit,
+                 methods=_methods(args.methods) or None, device=args.device,
+                 threads=args.threads)
+    print_sequences(r)
+    rec = r["reconstruction"]
+    if rec:
+        print(f"\n{'method':24s} {'PSNR lin':>9s} {'SSIM lin':>9s} {'ms/frame':>9s}")
+        for m in rec["methods"]:
+            e = rec["summary"][m]["all"]
+            print(f"{m:24s} {e['PSNR[linear]']:9.2f} {e['SSIM-gauss11[linear]']:9.4f} "
+                  f"{e['ms_per_frame']:9.1f}")
+    print(f"\nwrote {len(r['sequences'])} sequences and {args.out}/report.md")
+    return 0
 
 
 def _dispatch(parser, args) -> int:
@@ -412,6 +431,8 @@ def _dispatch(parser, args) -> int:
         return _train(args)
     if args.command == "reconstruct":
         return _reconstruct(args)
+    if args.command == "demo":
+        return _demo(args)
     if args.command == "methods":
         from spikejdd import list_methods
 

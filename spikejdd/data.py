@@ -50,7 +50,7 @@ __all__ = [
     "make_sample",
 ]
 
-#: HDF5 format versions this loader understands (DESIGN.md §3).
+#: HDF5 format versions this loader understands (docs/io.md).
 SUPPORTED_FORMAT_VERSIONS: tuple[int, ...] = (1,)
 
 

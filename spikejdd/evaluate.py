@@ -30,6 +30,7 @@ from spikejdd.metrics import score
 from spikejdd.registry import call_method, get_method
 from spikejdd.runtime import describe_machine, machine_info
 from spikesim.errors import bad_value
+from spikesim.srgb import linear_to_srgb8
 
 __all__ = ["Frame", "frames_from_dataset", "frames_from_simulation", "run", "sweep",
            "write_report", "SWEEP_LEVELS", "SWEEP_SETS", "machine_info", "sequence_labels",
@@ -332,12 +333,6 @@ def _group_table(table: dict, methods: list[str], title: str) -> list[str]:
     return lines
 
 
-def _srgb8(img: np.ndarray) -> np.ndarray:
-    from spikejdd.metrics import srgb_encode
-
-    return (np.clip(srgb_encode(np.clip(img, 0.0, 1.0)), 0, 1) * 255 + 0.5).astype(np.uint8)
-
-
 def panel_image(tiles: list[np.ndarray], labels: list[str], crop: int = PANEL_CROP) -> np.ndarray:
     """Side-by-side sRGB 8-bit panel of linear (H, W, 3) images, the same centred crop of each
     (at most ``crop`` pixels a side), small crops enlarged to >= 96 px (nearest neighbour),
@@ -351,7 +346,7 @@ def panel_image(tiles: list[np.ndarray], labels: list[str], crop: int = PANEL_CR
     strip = 14
     out = []
     for img, label in zip(tiles, labels, strict=True):
-        t = _srgb8(img[top:top + ch, left:left + cw])
+        t = linear_to_srgb8(img[top:top + ch, left:left + cw])
         t = np.repeat(np.repeat(t, scale, axis=0), scale, axis=1)
         head = np.full((strip, t.shape[1], 3), 255, np.uint8)
         text = label if len(label) * 6 <= t.shape[1] else label[: max(1, t.shape[1] // 6 - 1)]

@@ -1,4 +1,4 @@
-"""Image quality metrics per DESIGN.md §3: PSNR and SSIM on RGB, peak 1.0.
+"""Image quality metrics: PSNR and SSIM on RGB, peak 1.0 (docs/architecture.md, Conventions).
 
 Conventions (fixed; every score carries its label):
 
@@ -29,6 +29,7 @@ import numpy as np
 from scipy import ndimage
 
 from spikesim.errors import SpikeSimTypeError, bad_value
+from spikesim.srgb import linear_to_srgb as srgb_encode  # re-exported: the one sRGB curve
 
 __all__ = ["psnr", "ssim", "srgb_encode", "score", "SSIM_VARIANTS", "DOMAINS", "label"]
 
@@ -36,12 +37,6 @@ SSIM_VARIANTS: tuple[str, ...] = ("gauss11", "uniform7")
 DOMAINS: tuple[str, ...] = ("linear", "srgb")
 
 _K1, _K2 = 0.01, 0.03
-
-
-def srgb_encode(x: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 sRGB encoding of linear values in [0, 1] (float64)."""
-    x = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
 
 
 def _prepare(x: np.ndarray, ref: np.ndarray, domain: str) -> tuple[np.ndarray, np.ndarray]:

@@ -325,6 +325,21 @@ def get_method(name: str) -> Method:
     return METHODS.get(name)
 
 
+def reconstructor(method: str):
+    """``fn(spikes, cfa, center, rate=0.6)`` → (H, W, 3) linear RGB with ``method`` (any name
+    :meth:`Registry.get` resolves, checked now): the form spikesim's noise budget takes.
+    spikejdd offers it to spikesim through the ``spikesim.reconstructors`` entry point, so
+    ``spikesim analyze budget --method tfp+menon2007`` works without spikesim importing
+    spikejdd."""
+    resolved = METHODS.get(method)
+
+    def fn(spikes, cfa, center, rate: float = 0.6) -> np.ndarray:
+        return call_method(resolved, spikes, cfa, center, rate=rate)
+
+    fn.__name__ = fn.__qualname__ = str(method)
+    return fn
+
+
 def list_methods() -> dict[str, str]:
     """``METHODS.describe()``: pipelines and registered methods with descriptions."""
     return METHODS.describe()
@@ -381,5 +396,14 @@ def reconstruct(
     **options
         Passed to the method (e.g. ``no_spike`` for TFI pipelines, ``weights``
         and ``device`` for SJDD-Net).
+
+    Examples
+    --------
+    >>> import spikesim as ss, spikejdd as sj
+    >>> scene = ss.scenes.procedural("astronaut", size=(16, 16))
+    >>> stream = ss.simulate(scene, ss.Sensor(height=16, width=16), 41)
+    >>> rgb = sj.reconstruct(stream.unpack(), "RGGB", "tfp+menon2007", center=20)
+    >>> rgb.shape, rgb.dtype
+    ((16, 16, 3), dtype('float64'))
     """
     return call_method(METHODS.get(method), spikes, cfa, center, rate=rate, **options)

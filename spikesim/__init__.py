@@ -1,6 +1,6 @@
 """spikesim: a physics-faithful simulator of Bayer integrate-and-fire spike cameras.
 
-Public API (DESIGN.md §4)::
+Public API (README.md, "Using the library"; docs/architecture.md)::
 
     import spikesim as ss
     sensor = ss.Sensor.preset("color-1000x1000-20k")
@@ -25,7 +25,8 @@ from spikesim.errors import (
 )
 from spikesim.ideal import ideal_spike_times
 from spikesim.sensor import Sensor, list_presets
-from spikesim.simulate import SimulationRun, SpikeChunk, SpikeStream, simulate, simulate_chunks
+from spikesim.simulate import SimulationRun, simulate, simulate_chunks
+from spikesim.stream import SpikeChunk, SpikeSource, SpikeStream, pixel_counts
 from spikesim.workload import RunawayWorkWarning
 
 __all__ = [
@@ -37,6 +38,8 @@ __all__ = [
     "SimulationRun",
     "SpikeStream",
     "SpikeChunk",
+    "SpikeSource",
+    "pixel_counts",
     "ideal_spike_times",
     "bits",
     "io",

@@ -6,7 +6,7 @@ single ``bitcast <64 x i1> to i64``, which x86 lowers to vector compares into
 mask registers (AVX-512) or ``movmsk`` (AVX2/SSE) and other targets lower
 correctly too.  These helpers express one 64-lane block step that way.  Lane
 ``k`` maps to bit ``k`` of the result, the little-bit-order packed layout of
-DESIGN.md §3.
+docs/architecture.md, Conventions.
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ linear_carry_add64.__doc__ = """One readout of a linear-radiance segment for a 6
     bits are returned as in :func:`carry_add64`.  Every charge must lie in
     [0, 1) threshold (the caller checks), else the conversion is undefined."""
 paper_carry_add64 = _paper_carry_add(False)
-paper_carry_add64.__doc__ = """One readout of paper-mode noise (DESIGN.md §2.3) for a 64-lane block.
+paper_carry_add64.__doc__ = """One readout of paper-mode noise (docs/model.md) for a 64-lane block.
 
     Lane ``k`` (index ``start + k``) gets the noisy level
     ``x = max(level + sd·z, 0)``, the charge ``q = (gain·x + offset)·2⁶⁴``

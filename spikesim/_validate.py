@@ -14,7 +14,9 @@ import numbers
 
 from spikesim.errors import bad_value
 
-__all__ = ["MAX_READOUTS", "check_cli_numbers", "check_int", "check_real", "is_int", "is_real"]
+__all__ = ["MAX_READOUTS", "check_cli_numbers", "check_crop", "check_int", "check_positive",
+           "check_real", "check_size", "check_time", "check_window", "is_int",
+           "is_real"]
 
 
 def is_int(value) -> bool:
@@ -104,3 +106,75 @@ def check_cli_numbers(args) -> None:
         value = getattr(args, dest, None)
         if is_real(value):
             check_real("--" + dest.replace("_", "-"), value, low, high, low_open=True, unit=unit)
+
+
+def check_window(start: int, length: int | None, n_readouts: int) -> tuple[int, int]:
+    """Validate ``start``/``length`` against a stream of ``n_readouts``; ``None`` = to the end."""
+    if not is_int(start) or not 0 <= start < n_readouts:
+        raise bad_value("start", start, f"an integer readout index in [0, {n_readouts - 1}]")
+    start = int(start)
+    if length is None:
+        return start, n_readouts - start
+    if not is_int(length) or not 1 <= length <= n_readouts - start:
+        raise bad_value(
+            "length", length,
+            f"an integer in [1, {n_readouts - start}] (the stream has {n_readouts} readouts, "
+            f"start={start})",
+        )
+    return start, int(length)
+
+
+def check_crop(crop: tuple | None, height: int, width: int) -> tuple[int, int, int, int]:
+    """Validate ``crop = (top, left, h, w)`` inside an ``height × width`` frame."""
+    if crop is None:
+        return 0, 0, height, width
+    try:
+        top, left, h, w = crop
+    except (TypeError, ValueError):
+        raise bad_value("crop", crop, "None or (top, left, height, width)") from None
+    if not all(is_int(v) for v in (top, left, h, w)):
+        raise bad_value("crop", crop, "four integers (top, left, height, width)")
+    if not (0 <= top and 0 <= left and h >= 1 and w >= 1 and top + h <= height
+            and left + w <= width):
+        raise bad_value(
+            "crop", tuple(int(v) for v in crop),
+            f"(top, left, height, width) with top+height <= {height}, left+width <= {width}, "
+            "all >= 0 and sizes >= 1",
+        )
+    return int(top), int(left), int(h), int(w)
+
+
+def check_positive(name: str, value: object, allow_none: bool = False) -> float | None:
+    """Validate a finite, strictly positive number (``None`` allowed if ``allow_none``)."""
+    if value is None and allow_none:
+        return None
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        v = math.nan
+    if isinstance(value, bool) or not math.isfinite(v) or v <= 0:
+        raise bad_value(name, value, "a finite number > 0")
+    return v
+
+
+def check_time(t: object) -> float:
+    """Validate a time in seconds (finite real)."""
+    try:
+        v = float(t)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise bad_value("t", t, "a finite time in seconds") from None
+    if not math.isfinite(v):
+        raise bad_value("t", t, "a finite time in seconds")
+    return v
+
+
+def check_size(size: object) -> tuple[int, int]:
+    """Validate ``size=(H, W)`` in pixels, each an integer >= 1."""
+    try:
+        h, w = size  # type: ignore[misc]
+        ok = all(is_int(v) for v in (h, w))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or h < 1 or w < 1:
+        raise bad_value("size", size, "(H, W) with integers H >= 1 and W >= 1")
+    return int(h), int(w)

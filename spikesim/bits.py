@@ -1,4 +1,4 @@
-"""Bit packing of spike frames (DESIGN.md §3).
+"""Bit packing of spike frames (docs/architecture.md, Conventions).
 
 Spikes are packed along the width axis with *little* bit order: pixel ``x`` of a
 row lives in byte ``x // 8``, bit ``x % 8`` (LSB first), ``ceil(W/8)`` bytes per
@@ -11,7 +11,7 @@ import numpy as np
 
 from spikesim.errors import SpikeSimTypeError, bad_value
 
-__all__ = ["packed_width", "pack", "unpack"]
+__all__ = ["packed_width", "pack", "unpack", "crop_packed"]
 
 
 def packed_width(width: int) -> int:
@@ -39,3 +39,22 @@ def unpack(packed: np.ndarray, width: int) -> np.ndarray:
             "packed.shape[-1]", packed.shape[-1], f"ceil(width/8) = {packed_width(width)}"
         )
     return np.unpackbits(packed, axis=-1, count=int(width), bitorder="little")
+
+
+def crop_packed(packed: np.ndarray, bit_offset: int, width: int, unpack: bool) -> np.ndarray:
+    """Cut ``width`` pixels starting at bit ``bit_offset`` out of packed rows.
+
+    ``packed`` is (..., nbytes) little bit order, already sliced to the bytes
+    that hold the crop.  Returns 0/1 bytes (``unpack=True``) or re-packed bits
+    with zero padding.
+    """
+    if bit_offset == 0 and not unpack:
+        out = np.ascontiguousarray(packed[..., : (width + 7) // 8])
+        if width % 8:
+            out[..., -1] &= np.uint8((1 << (width % 8)) - 1)
+        return out
+    bits = np.unpackbits(packed, axis=-1, count=bit_offset + width, bitorder="little")
+    bits = bits[..., bit_offset:]
+    if unpack:
+        return np.ascontiguousarray(bits)
+    return np.packbits(bits, axis=-1, bitorder="little")

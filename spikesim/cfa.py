@@ -2,7 +2,7 @@
 
 A pattern is named by its top-left 2×2 tile read row by row (``"RGGB"`` means
 ``R G / G B``).  ``None`` (or ``"mono"``) is a monochrome sensor.  Row 0 is the
-top of the image (DESIGN.md §3).
+top of the image (docs/architecture.md, Conventions).
 
 Two mask layouts are provided:
 

@@ -2,7 +2,7 @@
 
 Both estimators return **scene units**: linear light, relative, where 1.0 is the
 intensity at which the sensor fires ``rate`` spikes per readout (``rate`` is the
-sensor's ``full_scale_rate``, DESIGN.md §2).  A perfect (noise-free, clocked)
+sensor's ``full_scale_rate``, docs/model.md).  A perfect (noise-free, clocked)
 stream of constant intensity ``I`` therefore returns ``I``, up to the
 quantization error of the window (see each function).
 
@@ -162,6 +162,17 @@ def tfp(
     ----------
     Zhu, Duan, Dong, Xiong, Huang, "A Retina-Inspired Sampling Method for
     Visual Texture Reconstruction", ICME 2019.
+
+    Examples
+    --------
+    One spike every 4 readouts: 11 spikes in 41 readouts, 11 / (41 · 0.6):
+
+    >>> import numpy as np
+    >>> from spikesim.estimate import tfp
+    >>> spikes = np.zeros((41, 2, 2), np.uint8)
+    >>> spikes[::4] = 1
+    >>> tfp(spikes, center=20, window=41, rate=0.6).round(4).tolist()
+    [[0.4472, 0.4472], [0.4472, 0.4472]]
     """
     arr = _check_spikes(spikes)
     r = _check_rate(rate)

@@ -86,10 +86,9 @@ def check_method(method: str) -> str:
 
 def flow_image(frame: np.ndarray) -> np.ndarray:
     """(H, W) uint8 sRGB-encoded Rec. 709 luma of a linear (H, W, 3) frame (flow input)."""
-    from spikesim.scenes.photometry import linear_to_srgb
+    from spikesim.srgb import linear_to_srgb8
 
-    y = np.clip(frame @ _LUMA, 0.0, 1.0)
-    return np.round(linear_to_srgb(y) * 255.0).astype(np.uint8)
+    return linear_to_srgb8(frame @ _LUMA)
 
 
 def compute_flow(img0: np.ndarray, img1: np.ndarray, method: str = DEFAULT_FLOW) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 Every random number the simulator draws is a hash of its coordinates, never a
 state that advances, so the same seed gives the same bits whatever the chunk
-size, the thread count or the order of work (DESIGN.md §2).
+size, the thread count or the order of work (docs/model.md, "Random numbers").
 
 Construction (all arithmetic modulo 2**64):
 

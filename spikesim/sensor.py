@@ -1,7 +1,7 @@
 """Sensor configuration: geometry, clock, integrate-and-fire parameters, noise.
 
 The physics these parameters feed is in ``spikesim/_kernels.py`` and
-DESIGN.md §2.  A pixel integrates ``A(t) = ∫ η I dτ`` and fires when ``A``
+docs/model.md.  A pixel integrates ``A(t) = ∫ η I dτ`` and fires when ``A``
 reaches the threshold θ (Dong et al., AAAI 2024, eq. 1); the sensor checks
 every pixel once per readout period ``1/clock_hz`` and emits one bit.
 
@@ -156,7 +156,17 @@ class Sensor:
     # --- presets ---------------------------------------------------------
     @classmethod
     def preset(cls, name: str, **overrides) -> Sensor:
-        """A named sensor configuration, optionally with fields overridden."""
+        """A named sensor configuration, optionally with fields overridden.
+
+        Examples
+        --------
+        >>> import spikesim as ss
+        >>> sensor = ss.Sensor.preset("color-1000x1000-20k", height=256, width=256)
+        >>> sensor.cfa, sensor.height, sensor.clock_hz
+        ('RGGB', 256, 20000.0)
+        >>> "sjdd-gn" in ss.list_presets()
+        True
+        """
         if name not in _PRESETS:
             raise bad_value("preset", name, f"one of {sorted(_PRESETS)}")
         return _PRESETS[name][1].replace(**overrides)

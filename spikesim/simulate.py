@@ -12,22 +12,23 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from spikesim import _kernels, _mosaic, rng
 from spikesim._version import __version__
-from spikesim.bits import packed_width, unpack
+from spikesim.bits import packed_width
 from spikesim.cfa import LUMA_WEIGHTS, channel_index
 from spikesim.errors import SpikeSimTypeError, bad_value
 from spikesim.noise import NO_NOISE_PARAMS, PhysicalNoise, fixed_pattern
 from spikesim.scenes.static import validate_radiance
 from spikesim.schedule import build_schedule, key_readout_times
 from spikesim.sensor import Sensor
+from spikesim.stream import SpikeChunk, SpikeStream
 from spikesim.workload import check_key_frames
 
-__all__ = ["SpikeStream", "SpikeChunk", "SimulationRun", "simulate", "simulate_chunks"]
+__all__ = ["SimulationRun", "simulate", "simulate_chunks"]
 
 #: Budget for the packed output of one chunk (bytes) when the caller gives no size.
 CHUNK_OUTPUT_BYTES = 32 << 20
@@ -37,85 +38,6 @@ if sys.byteorder != "little":  # pragma: no cover - every supported target is li
     raise ImportError("spikesim's kernel writes packed bits as little-endian 64-bit words")
 _RESET_CODES = {"modulo": _kernels.RESET_MODULO, "subtract": _kernels.RESET_SUBTRACT,
                 "zero": _kernels.RESET_ZERO}
-
-
-@dataclass
-class SpikeChunk:
-    """Consecutive readouts ``[start, start + len(packed))`` of a simulation."""
-
-    start: int
-    packed: np.ndarray
-    clean_packed: np.ndarray | None
-    gt: np.ndarray
-    gt_index: np.ndarray
-
-
-@dataclass
-class SpikeStream:
-    """A simulated (or loaded) spike stream with its ground truth and metadata.
-
-    Attributes
-    ----------
-    packed : (T, H, ceil(W/8)) uint8
-        Spike bits, packed along W, little bit order (DESIGN.md §3).
-    meta : dict
-        JSON-able description: sensor, scene, seed, clock_hz, cfa, height,
-        width, n_readouts, start_readout, clean_twin, spikesim_version, bitorder.
-    clean_packed : same shape as ``packed`` or None
-        The noise-free twin (same seed and initial state, every noise source off).
-    gt : (K, H, W, 3) float32
-        Linear RGB radiance at the middle of readouts ``gt_index``.
-    gt_index : (K,) int64
-        Readout index of each ground-truth frame.
-    """
-
-    packed: np.ndarray
-    meta: dict
-    clean_packed: np.ndarray | None = None
-    gt: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0, 3), np.float32))
-    gt_index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-
-    @property
-    def n_readouts(self) -> int:
-        return int(self.packed.shape[0])
-
-    @property
-    def height(self) -> int:
-        return int(self.meta["height"])
-
-    @property
-    def width(self) -> int:
-        return int(self.meta["width"])
-
-    @property
-    def cfa(self) -> str | None:
-        return self.meta.get("cfa")
-
-    @property
-    def clock_hz(self) -> float:
-        return float(self.meta["clock_hz"])
-
-    @property
-    def seed(self) -> int:
-        return int(self.meta["seed"])
-
-    @property
-    def sensor(self) -> Sensor:
-        return Sensor.from_dict(self.meta["sensor"])
-
-    def unpack(self, clean: bool = False, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """(T, H, W) uint8 0/1 spikes of readouts ``[start, stop)``."""
-        src = self.clean_packed if clean else self.packed
-        if src is None:
-            raise bad_value("clean", clean, "False: this stream has no clean twin")
-        return unpack(src[start:stop], self.width)
-
-    def firing_rate(self, clean: bool = False) -> np.ndarray:
-        """(H, W) mean spikes per readout of each pixel."""
-        counts = np.zeros((self.height, self.width), np.int64)
-        for s in range(0, self.n_readouts, 256):
-            counts += self.unpack(clean, s, s + 256).sum(axis=0, dtype=np.int64)
-        return counts / max(self.n_readouts, 1)
 
 
 def _check_int(name: str, value, low: int, high: int | None = None) -> int:
@@ -459,6 +381,19 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
     Returns
     -------
     SpikeStream
+
+    Examples
+    --------
+    Half of full scale on an ideal monochrome sensor fires 0.3 spikes per readout
+    (``full_scale_rate`` 0.6), exactly:
+
+    >>> import numpy as np, spikesim as ss
+    >>> sensor = ss.Sensor(height=4, width=8, cfa=None)
+    >>> stream = ss.simulate(ss.scenes.Static(np.full((4, 8), 0.5)), sensor, 100, seed=0)
+    >>> stream.packed.shape  # (T, H, ceil(W / 8)) bytes
+    (100, 4, 1)
+    >>> float(stream.unpack().mean()), stream.gt.shape, stream.gt_index.tolist()
+    (0.3, (1, 4, 8, 3), [50])
     """
     run = SimulationRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
                         chunk_readouts, progress)

@@ -114,7 +114,7 @@ def write_reference(model: SJDDNet, path) -> dict:
 
 
 def reference_check(name: str) -> float:
-    """Max |difference| between shipped model ``name`` and its stored reference output;
+    """Largest absolute difference between shipped model ``name`` and its stored reference output;
     raises if it exceeds the stored tolerance."""
     ref = json.loads((WEIGHTS_DIR / f"{name}.ref.json").read_text())
     model = load_pretrained(name)

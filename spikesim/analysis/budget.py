@@ -9,7 +9,7 @@ so every run draws identical random numbers for the sources it shares, see
 * **none**: the clean twin of the *all* run (same seed and initial state).
 
 Each stream is reconstructed at the same readouts and scored against the
-ground truth with PSNR (peak 1, clamp to [0, 1], no crop; DESIGN.md §3).
+ground truth with PSNR (peak 1, clamp to [0, 1], no crop; docs/architecture.md, Conventions).
 
 Cost of a source (dB): ``cost_s = PSNR(all − s) − PSNR(all)``; total cost
 ``PSNR(none) − PSNR(all)``.  How costs "sum": decibels do not add, but for
@@ -23,9 +23,11 @@ saturation or the one-spike-per-readout limit).
 Reconstruction: ``"tfp"`` (default, window ``window``) or ``"tfi"`` from
 :mod:`spikesim.estimate`, scored on the sensor's colour mosaic; any callable
 ``fn(spikes, cfa, center, rate=...)`` returning (H, W) (scored on the mosaic)
-or (H, W, 3) (scored on linear RGB); or the name of a ``spikejdd`` method
-(scored on linear RGB) when ``spikejdd`` is importable.  spikesim itself
-never imports torch.
+or (H, W, 3) (scored on linear RGB); or a method name offered by an installed
+reconstruction package through the entry-point group
+``spikesim.reconstructors`` (:data:`RECONSTRUCTOR_GROUP`; spikejdd offers all
+of its methods and pipelines there).  spikesim never imports a reconstruction
+package by name, nor torch.
 """
 
 from __future__ import annotations
@@ -40,7 +42,12 @@ from spikesim.errors import SpikeSimTypeError, SpikeSimValueError, bad_value
 from spikesim.estimate import tfi, tfp
 from spikesim.noise import PaperNoise, PhysicalNoise
 
-__all__ = ["noise_budget", "noise_sources", "psnr", "make_reconstructor"]
+__all__ = ["noise_budget", "noise_sources", "psnr", "make_reconstructor", "RECONSTRUCTOR_GROUP"]
+
+#: Entry-point group of reconstruction packages: each entry point loads a factory
+#: ``factory(name) -> fn(spikes, cfa, center, rate=...)`` that raises
+#: :class:`~spikesim.errors.SpikeSimValueError` for a name it does not offer.
+RECONSTRUCTOR_GROUP = "spikesim.reconstructors"
 
 
 def noise_sources(noise) -> dict[str, dict]:
@@ -68,7 +75,7 @@ def noise_sources(noise) -> dict[str, dict]:
 
 
 def psnr(x: np.ndarray, ref: np.ndarray) -> float:
-    """PSNR in dB, peak 1.0, both clamped to [0, 1] (DESIGN.md §3)."""
+    """PSNR in dB, peak 1.0, both clamped to [0, 1] (docs/architecture.md, Conventions)."""
     mse = float(np.mean((np.clip(x, 0, 1) - np.clip(ref, 0, 1)) ** 2))
     return 10 * np.log10(1.0 / mse) if mse > 0 else np.inf
 
@@ -83,18 +90,20 @@ def make_reconstructor(method="tfp", window: int = 41):
         return (lambda s, cfa, c, rate: tfi(s, c, rate)), "tfi"
     if not isinstance(method, str):
         raise SpikeSimTypeError(f"method must be a name or a callable, got {type(method).__name__}")
-    try:
-        import spikejdd
-    except ImportError:
-        raise bad_value("method", method, "'tfp', 'tfi' or a callable (spikejdd is not "
-                        "importable, so its methods are unavailable)") from None
-    if method not in spikejdd.list_methods():
+    from importlib.metadata import entry_points
+
+    refusals = []
+    for ep in entry_points(group=RECONSTRUCTOR_GROUP):
         try:
-            spikejdd.registry.get_method(method)  # pipelines are resolved from their names
-        except SpikeSimValueError:
-            raise bad_value("method", method, "'tfp', 'tfi', a callable, or a spikejdd method "
-                            f"{sorted(spikejdd.list_methods())}") from None
-    return (lambda s, cfa, c, rate: spikejdd.reconstruct(s, cfa, method, c, rate=rate)), method
+            return ep.load()(method), method
+        except SpikeSimValueError as exc:
+            refusals.append(f"{ep.name}: {exc}")
+    if not refusals:
+        raise bad_value("method", method, "'tfp', 'tfi' or a callable (no reconstruction "
+                        f"package offers methods through {RECONSTRUCTOR_GROUP!r}; installing "
+                        "spikejdd adds its methods)")
+    raise bad_value("method", method, "'tfp', 'tfi', a callable, or a method an installed "
+                    "reconstruction package offers (" + "; ".join(refusals) + ")")
 
 
 def _score(stream, clean: bool, fn, centers, sensor):

@@ -1,7 +1,7 @@
 """Quantization noise: clocked readout against the ideal asynchronous reference.
 
 The clocked sensor reports readout ``n`` as 1 when at least one threshold
-crossing lies in ``(n, n+1]`` (DESIGN.md §2); the exact crossing times of the
+crossing lies in ``(n, n+1]`` (docs/model.md); the exact crossing times of the
 same noise-free sensor come from :func:`spikesim.ideal_spike_times`.  For a
 flat field of radiance ``I`` (charge ``q_i`` thresholds per readout) this
 study reports:
@@ -31,9 +31,10 @@ from __future__ import annotations
 import numpy as np
 
 import spikesim as ss
+from spikesim._validate import check_size
 from spikesim.analysis import theory
 from spikesim.analysis.report import AnalysisResult
-from spikesim.analysis.sweep import check_levels, check_sensor, check_size
+from spikesim.analysis.sweep import check_levels, check_sensor
 from spikesim.errors import bad_value
 from spikesim.estimate import tfi, tfp_std
 from spikesim.noise import fixed_pattern

@@ -28,6 +28,8 @@ below ``1 − 1e-3``; reported as a ratio and in dB (20·log10).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from spikesim.analysis import theory
@@ -36,7 +38,8 @@ from spikesim.analysis.sweep import check_levels, check_sensor, simulate_flat
 from spikesim.errors import bad_value
 from spikesim.estimate import tfi
 
-__all__ = ["snr_curve", "tfi_moments_theory", "DEFAULT_SNR_LEVELS", "DEFAULT_WINDOWS"]
+__all__ = ["snr_curve", "measure_snr", "snr_report", "dynamic_range", "SNRConfig",
+           "tfi_moments_theory", "DEFAULT_SNR_LEVELS", "DEFAULT_WINDOWS"]
 
 DEFAULT_SNR_LEVELS = (0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 1.5, 2.0)
 DEFAULT_WINDOWS = (11, 41, 161)
@@ -64,35 +67,78 @@ def _window_estimates(spikes, w, r):
     return c / (w * r)
 
 
-def snr_curve(sensor="ideal", levels=DEFAULT_SNR_LEVELS, windows=DEFAULT_WINDOWS,
-              n_readouts: int = 3220, size: tuple[int, int] = (24, 24), seed: int = 0,
-              tfi_stride: int = 50, dr_window: int | None = None,
-              progress: bool = False) -> AnalysisResult:
-    """SNR of TFP (each window length) and TFI against radiance; dark rate; dynamic range."""
-    sensor = check_sensor(sensor)
-    lv = np.unique(check_levels(levels))
-    wins = [int(w) for w in windows]
-    if not wins or any(w < 1 for w in wins):
-        raise bad_value("windows", windows, "one or more window lengths >= 1 readout")
-    if n_readouts < 2 * max(wins):
-        raise bad_value("n_readouts", n_readouts, f">= 2·max(windows) = {2 * max(wins)}")
-    dr_window = max(wins) if dr_window is None else int(dr_window)
-    if dr_window not in wins:
-        raise bad_value("dr_window", dr_window, f"one of windows {wins}")
+@dataclass(frozen=True)
+class SNRConfig:
+    """How :func:`snr_curve` measures: window lengths (readouts), stream length and size,
+    seed, spacing of TFI centres and the window that defines the dynamic range."""
+
+    windows: tuple[int, ...] = DEFAULT_WINDOWS
+    n_readouts: int = 3220
+    size: tuple[int, int] = (24, 24)
+    seed: int = 0
+    tfi_stride: int = 50
+    dr_window: int | None = None  # None: the longest window
+
+    def __post_init__(self):
+        wins = tuple(int(w) for w in self.windows)
+        if not wins or any(w < 1 for w in wins):
+            raise bad_value("windows", self.windows, "one or more window lengths >= 1 readout")
+        if self.n_readouts < 2 * max(wins):
+            raise bad_value("n_readouts", self.n_readouts, f">= 2·max(windows) = {2 * max(wins)}")
+        dr = max(wins) if self.dr_window is None else int(self.dr_window)
+        if dr not in wins:
+            raise bad_value("dr_window", self.dr_window, f"one of windows {list(wins)}")
+        object.__setattr__(self, "windows", wins)
+        object.__setattr__(self, "dr_window", dr)
+
+
+def _tfp_snr_theory(model, q, v1, w, r, noisy: bool) -> float:
+    """SNR of the TFP estimate over window ``w`` from the rate and count theory."""
+    cvar = np.where(q < 1, theory.count_variance(np.minimum(q, 1), w, v1), 0.0)
+    var_th = model.var() / r**2 + cvar.mean() / (w * r) ** 2
+    mean_th = model.mean() / r
+    if np.any((q > 0.95) & (q < 1)) and noisy:
+        return np.nan  # the count theory is not valid this close to saturation
+    if var_th > 0:
+        return mean_th / np.sqrt(var_th)
+    return np.inf if mean_th > 0 else np.nan
+
+
+def _tfi_snr(spikes, q, cfg: SNRConfig, kappa2: float, r: float) -> tuple[float, float]:
+    """Measured and theoretical SNR of TFI at centres ``tfi_stride`` apart (NaN when the
+    stream is too short for three of the longest intervals on either side)."""
+    qmin = float(q.min())
+    margin = int(np.ceil(3.0 / qmin)) if qmin > 0 else cfg.n_readouts
+    centres = np.arange(margin, cfg.n_readouts - margin, cfg.tfi_stride)
+    measured = theory_snr = np.nan
+    if centres.size >= 2:
+        vals = np.stack([tfi(spikes, int(c), rate=r, no_spike="bound") for c in centres])
+        m, s = float(vals.mean()), float(vals.std())
+        measured = m / s if s > m * 1e-9 else np.inf
+        if ((q > 0) & (q < 0.95)).all():
+            e1, e2 = tfi_moments_theory(q, kappa2, r)
+            var = e2.mean() - e1.mean() ** 2
+            theory_snr = e1.mean() / np.sqrt(var) if var > 1e-18 else np.inf
+    return measured, theory_snr
+
+
+def measure_snr(sensor, levels: np.ndarray, cfg: SNRConfig, progress: bool = False) -> dict:
+    """Simulate each flat field and measure TFP (every window) and TFI SNR, the mean rate,
+    their theory, the dark counts and the dynamic range (the data :func:`snr_report` shows)."""
     r = sensor.full_scale_rate
     kappa2 = theory.cycle_cv2(sensor.noise)
+    wins = cfg.windows
     res = {f"tfp_snr_w{w}": [] for w in wins}
     res.update({f"tfp_snr_theory_w{w}": [] for w in wins})
     res.update(tfi_snr=[], tfi_snr_theory=[], mean_rate=[])
-    dark = None
-    it = lv
+    dark, dark_mean = None, {}
+    it = levels
     if progress:
         from tqdm.auto import tqdm
 
-        it = tqdm(lv, desc="snr", unit="level")
-    dark_mean = {}
+        it = tqdm(levels, desc="snr", unit="level")
     for level in it:
-        run = simulate_flat(sensor, level, n_readouts, seed, size)
+        run = simulate_flat(sensor, level, cfg.n_readouts, cfg.seed, cfg.size)
         q = run.q
         model = theory.rate_theory(q, sensor.reset)
         v1 = theory.charge_variance_per_readout(q, sensor.noise, r, level)
@@ -103,64 +149,57 @@ def snr_curve(sensor="ideal", levels=DEFAULT_SNR_LEVELS, windows=DEFAULT_WINDOWS
             if level == 0:
                 dark_mean[w] = m
             res[f"tfp_snr_w{w}"].append(m / s if s > m * 1e-9 else np.inf)
-            cvar = np.where(q < 1, theory.count_variance(np.minimum(q, 1), w, v1), 0.0)
-            var_th = model.var() / r**2 + cvar.mean() / (w * r) ** 2
-            mean_th = model.mean() / r
-            if np.any((q > 0.95) & (q < 1)) and sensor.noise is not None:
-                snr_th = np.nan  # the count theory is not valid this close to saturation
-            elif var_th > 0:
-                snr_th = mean_th / np.sqrt(var_th)
-            else:
-                snr_th = np.inf if mean_th > 0 else np.nan
-            res[f"tfp_snr_theory_w{w}"].append(snr_th)
+            res[f"tfp_snr_theory_w{w}"].append(
+                _tfp_snr_theory(model, q, v1, w, r, sensor.noise is not None))
             res.setdefault(f"mean_tfp_w{w}", []).append(m)
-        qmin = float(q.min())
-        margin = int(np.ceil(3.0 / qmin)) if qmin > 0 else n_readouts
-        centres = np.arange(margin, n_readouts - margin, tfi_stride)
-        if centres.size >= 2:
-            vals = np.stack([tfi(run.spikes, int(c), rate=r, no_spike="bound") for c in centres])
-            m, s = float(vals.mean()), float(vals.std())
-            res["tfi_snr"].append(m / s if s > m * 1e-9 else np.inf)
-        else:  # intervals too long for this stream: TFI not measured
-            res["tfi_snr"].append(np.nan)
-        ok = (q > 0) & (q < 0.95)
-        if centres.size >= 2 and ok.all():
-            e1, e2 = tfi_moments_theory(q, kappa2, r)
-            var = e2.mean() - e1.mean() ** 2
-            res["tfi_snr_theory"].append(e1.mean() / np.sqrt(var) if var > 1e-18 else np.inf)
-        else:
-            res["tfi_snr_theory"].append(np.nan)
+        measured, predicted = _tfi_snr(run.spikes, q, cfg, kappa2, r)
+        res["tfi_snr"].append(measured)
+        res["tfi_snr_theory"].append(predicted)
         if level == 0:
             dark = {"rate_per_readout": float(run.spikes.mean()),
                     "pixel_sd": float(run.spikes.mean(axis=0).std()),
                     "model_rate": float(model.mean())}
-    # dynamic range from the dr_window TFP estimates
-    base = dark_mean.get(dr_window, 0.0)
-    snr_dr = []
-    for i in range(len(lv)):
-        m = res[f"mean_tfp_w{dr_window}"][i]
-        snr = res[f"tfp_snr_w{dr_window}"][i]
-        snr_dr.append(snr * (m - base) / m if m > 0 else 0.0)
-    usable = [lv[i] for i in range(len(lv)) if lv[i] > 0 and snr_dr[i] >= 1]
-    unsat = [lv[i] for i in range(len(lv)) if res["mean_rate"][i] < 1 - 1e-3]
-    i_min = min(usable) if usable else np.nan
-    i_max = max(unsat) if unsat else np.nan
-    dr = {"window": dr_window, "i_min": i_min, "i_max": i_max,
-          "ratio": i_max / i_min if usable and unsat else np.nan,
-          "db": 20 * np.log10(i_max / i_min) if usable and unsat else np.nan,
-          "saturation_theory": 1.0 / r}
     if dark is not None and sensor.clock_hz:
         dark["rate_hz"] = dark["rate_per_readout"] * sensor.clock_hz
+    return {"sensor": sensor.to_dict(), "levels": levels, "windows": list(wins),
+            "n_readouts": cfg.n_readouts, "size": list(cfg.size), "seed": cfg.seed,
+            "kappa2": kappa2, **res, "dark": dark,
+            "dynamic_range": dynamic_range(levels, res, dark_mean.get(cfg.dr_window, 0.0),
+                                           cfg.dr_window, r)}
+
+
+def dynamic_range(levels, res: dict, dark_tfp: float, window: int, r: float) -> dict:
+    """From the lowest radiance whose dark-subtracted TFP SNR (window ``window``) is >= 1 to
+    the highest whose mean rate is below ``1 − 1e-3``; ratio and dB (20·log10)."""
+    snr_dr = []
+    for i in range(len(levels)):
+        m = res[f"mean_tfp_w{window}"][i]
+        snr = res[f"tfp_snr_w{window}"][i]
+        snr_dr.append(snr * (m - dark_tfp) / m if m > 0 else 0.0)
+    usable = [levels[i] for i in range(len(levels)) if levels[i] > 0 and snr_dr[i] >= 1]
+    unsat = [levels[i] for i in range(len(levels)) if res["mean_rate"][i] < 1 - 1e-3]
+    i_min = min(usable) if usable else np.nan
+    i_max = max(unsat) if unsat else np.nan
+    return {"window": window, "i_min": i_min, "i_max": i_max,
+            "ratio": i_max / i_min if usable and unsat else np.nan,
+            "db": 20 * np.log10(i_max / i_min) if usable and unsat else np.nan,
+            "saturation_theory": 1.0 / r}
+
+
+def snr_report(data: dict) -> AnalysisResult:
+    """The table, notes and plot of :func:`measure_snr`'s data."""
+    lv, wins, dark = data["levels"], data["windows"], data["dark"]
+    dr = data["dynamic_range"]
+    i_min, i_max = dr["i_min"], dr["i_max"]
+    r = 1.0 / dr["saturation_theory"]
+    size, n_readouts = data["size"], data["n_readouts"]
     headers = ["radiance I", "mean rate"] + [f"TFP SNR w={w}" for w in wins] + \
         [f"theory w={w}" for w in wins] + ["TFI SNR", "TFI theory"]
     rows = []
     for i, level in enumerate(lv):
-        rows.append([level, res["mean_rate"][i]] + [res[f"tfp_snr_w{w}"][i] for w in wins]
-                    + [res[f"tfp_snr_theory_w{w}"][i] for w in wins]
-                    + [res["tfi_snr"][i], res["tfi_snr_theory"][i]])
-    data = {"sensor": sensor.to_dict(), "levels": lv, "windows": wins, "n_readouts": n_readouts,
-            "size": list(size), "seed": seed, "kappa2": kappa2, **res, "dark": dark,
-            "dynamic_range": dr}
+        rows.append([level, data["mean_rate"][i]] + [data[f"tfp_snr_w{w}"][i] for w in wins]
+                    + [data[f"tfp_snr_theory_w{w}"][i] for w in wins]
+                    + [data["tfi_snr"][i], data["tfi_snr_theory"][i]])
     notes = [
         f"Flat fields, {size[0]}×{size[1]} pixels, {n_readouts} readouts; SNR = mean/sd of the "
         "estimate over pixels and windows (temporal + fixed-pattern noise).",
@@ -168,7 +207,7 @@ def snr_curve(sensor="ideal", levels=DEFAULT_SNR_LEVELS, windows=DEFAULT_WINDOWS
         f"(model {dark['model_rate']:.4g}, per-pixel sd {dark['pixel_sd']:.3g})"
         + (f", {dark['rate_hz']:.4g} Hz." if "rate_hz" in dark else ".")
         if dark else "No I = 0 level in the sweep: dark-count rate not measured.",
-        f"Dynamic range (TFP, w = {dr_window}, dark-subtracted SNR ≥ 1 up to saturation): "
+        f"Dynamic range (TFP, w = {dr['window']}, dark-subtracted SNR ≥ 1 up to saturation): "
         f"I_min = {i_min:.4g}, I_max = {i_max:.4g} (saturation theory 1/r = {1 / r:.4g}), "
         f"{dr['db']:.1f} dB.",
     ]
@@ -177,18 +216,18 @@ def snr_curve(sensor="ideal", levels=DEFAULT_SNR_LEVELS, windows=DEFAULT_WINDOWS
         ax1, ax2 = fig.subplots(1, 2)
         pos = lv > 0
         for w in wins:
-            y = np.array(res[f"tfp_snr_w{w}"], float)[pos]
+            y = np.array(data[f"tfp_snr_w{w}"], float)[pos]
             line = ax1.loglog(lv[pos], np.where(np.isfinite(y), y, np.nan), "o", ms=4,
                               label=f"TFP w={w}")
-            yt = np.array(res[f"tfp_snr_theory_w{w}"], float)[pos]
+            yt = np.array(data[f"tfp_snr_theory_w{w}"], float)[pos]
             ax1.loglog(lv[pos], np.where(np.isfinite(yt), yt, np.nan), "-",
                        color=line[0].get_color(), lw=0.8)
-        y = np.array(res["tfi_snr"], float)[pos]
+        y = np.array(data["tfi_snr"], float)[pos]
         ax1.loglog(lv[pos], np.where(np.isfinite(y), y, np.nan), "k^", ms=4, label="TFI")
         ax1.axhline(1.0, color="grey", lw=0.5)
         ax1.set(xlabel="radiance I", ylabel="SNR", title="SNR (lines: theory)")
         ax1.legend(fontsize=7)
-        ax2.loglog(lv[pos], np.array(res["mean_rate"])[pos], "o", ms=4, label="mean rate")
+        ax2.loglog(lv[pos], np.array(data["mean_rate"])[pos], "o", ms=4, label="mean rate")
         ax2.loglog(lv[pos], np.minimum(r * lv[pos], 1), "k--", label="min(r·I, 1)")
         if dark:
             ax2.axhline(dark["rate_per_readout"] or np.nan, color="r", lw=0.8, label="dark rate")
@@ -199,3 +238,17 @@ def snr_curve(sensor="ideal", levels=DEFAULT_SNR_LEVELS, windows=DEFAULT_WINDOWS
 
     return AnalysisResult("snr", "SNR, dark counts and dynamic range", data,
                           [("SNR against radiance", headers, rows)], notes, plot)
+
+
+def snr_curve(sensor="ideal", levels=DEFAULT_SNR_LEVELS, windows=DEFAULT_WINDOWS,
+              n_readouts: int = 3220, size: tuple[int, int] = (24, 24), seed: int = 0,
+              tfi_stride: int = 50, dr_window: int | None = None,
+              progress: bool = False) -> AnalysisResult:
+    """SNR of TFP (each window length) and TFI against radiance; dark rate; dynamic range.
+
+    The two steps are :func:`measure_snr` (simulation and measurement, configured by
+    :class:`SNRConfig`) and :func:`snr_report` (table, notes, plot).
+    """
+    sensor = check_sensor(sensor)
+    cfg = SNRConfig(tuple(windows), n_readouts, tuple(size), seed, tfi_stride, dr_window)
+    return snr_report(measure_snr(sensor, np.unique(check_levels(levels)), cfg, progress))

@@ -14,10 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 import spikesim as ss
+from spikesim._validate import check_size
 from spikesim.errors import SpikeSimTypeError, bad_value
 from spikesim.noise import fixed_pattern
 
-__all__ = ["FlatRun", "simulate_flat", "check_levels", "check_sensor", "check_size"]
+__all__ = ["FlatRun", "simulate_flat", "check_levels", "check_sensor"]
 
 
 @dataclass
@@ -37,16 +38,6 @@ def check_sensor(sensor) -> ss.Sensor:
         raise SpikeSimTypeError(f"sensor must be a spikesim.Sensor or a preset name, "
                                 f"got {type(sensor).__name__}")
     return sensor
-
-
-def check_size(size) -> tuple[int, int]:
-    try:
-        h, w = (int(v) for v in size)
-    except (TypeError, ValueError):
-        raise bad_value("size", size, "(height, width) in pixels") from None
-    if h < 1 or w < 1:
-        raise bad_value("size", size, "(height, width) >= 1 pixel each")
-    return h, w
 
 
 def check_levels(levels, name: str = "levels") -> np.ndarray:

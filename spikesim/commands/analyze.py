@@ -104,7 +104,8 @@ def register(subparsers) -> None:
     s.add_argument("--readouts", type=int, default=400)
     s.add_argument("--size", default="64x64")
     s.add_argument("--method", default="tfp",
-                   help="tfp (default), tfi, or a spikejdd method name (needs spikejdd)")
+                   help="tfp (default), tfi, or a method of an installed reconstruction "
+                        "package, e.g. spikejdd's tfp+menon2007 or sjdd")
     s.add_argument("--window", type=int, default=41)
     s.add_argument("--centers", type=int, default=4, help="readouts reconstructed")
     s.set_defaults(func=_run_budget)

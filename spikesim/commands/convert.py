@@ -59,9 +59,9 @@ def convert(src, dst, start: int = 0, length: int | None = None, crop=None,
     """
     from tqdm.auto import tqdm
 
+    from spikesim._validate import check_crop, check_window
     from spikesim.cfa import cfa_after_crop
     from spikesim.io._compression import DEFAULT_COMPRESSION
-    from spikesim.io._window import check_crop, check_window
     from spikesim.io.dat import DatWriter
     from spikesim.io.h5 import H5Writer
     from spikesim.io.source import is_dat

@@ -4,7 +4,7 @@ A spawned worker runs :func:`init_worker` first.  It installs the command
 line's signal handling (SIGTERM raises, so a file being written is removed
 on the way out) and starts a daemon thread that polls the parent's process
 id.  When the parent is gone (``kill -9``, a crash) the thread forbids every
-further rename into place (:func:`spikesim.io._atomic.set_rename_guard`),
+further rename into place (:func:`spikesim.io.atomic.set_rename_guard`),
 interrupts the task with SIGTERM and, should that not end the process within
 :data:`GRACE_S` seconds (a long kernel call), exits outright.  Nothing is
 renamed into the output folder after the parent has died, and no worker
@@ -52,7 +52,7 @@ def _watch() -> None:
         time.sleep(GRACE_S)
         # still here (a long kernel call holds the main thread): remove the files
         # being written and exit outright
-        from spikesim.io._atomic import discard_active_temps
+        from spikesim.io.atomic import discard_active_temps
 
         discard_active_temps()
         os._exit(1)
@@ -62,7 +62,7 @@ def init_worker(parent_pid: int) -> None:
     """Pool initializer: signal handling, parent watch and the rename guard."""
     global _parent_pid
     from spikesim.cli_guard import install_signal_handlers
-    from spikesim.io._atomic import set_rename_guard
+    from spikesim.io.atomic import set_rename_guard
 
     _parent_pid = int(parent_pid)
     install_signal_handlers()

@@ -12,7 +12,7 @@
   it is gone (``_watch.py``).  SIGTERM or Ctrl-C stops the workers, removes
   their temporary files and still writes ``build_summary.json``.
 * Stale temporary files of killed writers are removed; those of another live
-  run into the same folder are left alone (``spikesim.io._atomic``).
+  run into the same folder are left alone (``spikesim.io.atomic``).
 * Each split folder gets an ``index.json`` (``spikesim.io.build_index``), and
   the output folder ``plan.json`` (every task) and ``build_summary.json``.
 """
@@ -79,7 +79,7 @@ class BuildSummary:
 
 
 def _remove_stale_temps(out: Path, splits) -> int:
-    from spikesim.io._atomic import remove_stale_temps
+    from spikesim.io.atomic import remove_stale_temps
 
     return sum(remove_stale_temps(out / split) for split in splits if (out / split).is_dir())
 
@@ -336,7 +336,7 @@ def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) 
 
 
 def _write_json(path: Path, data) -> None:
-    from spikesim.io._atomic import atomic_path
+    from spikesim.io.atomic import atomic_path
 
     with atomic_path(path) as tmp:
         Path(tmp).write_text(json.dumps(data, indent=1))

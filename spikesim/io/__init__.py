@@ -5,6 +5,7 @@ their measured trade-offs.
 """
 
 from spikesim.io._compression import COMPRESSIONS, DEFAULT_COMPRESSION
+from spikesim.io.atomic import atomic_path
 from spikesim.io.dat import (
     KNOWN_SENSOR_SIZES,
     RAW_HEAD_COLUMNS,
@@ -47,6 +48,7 @@ __all__ = [
     "Dataset",
     "H5Writer",
     "Sequence",
+    "atomic_path",
     "build_index",
     "dataset_splits",
     "export_sjdd",

@@ -18,7 +18,7 @@ import os
 from pathlib import Path
 
 from spikesim.errors import SpikeSimFileError
-from spikesim.io._atomic import lock_temp
+from spikesim.io.atomic import lock_temp
 
 __all__ = ["GuardedFile", "write_error"]
 
@@ -46,7 +46,7 @@ class GuardedFile(io.RawIOBase):
     After the first failure writes and truncations are no-ops that report
     success; the caller must check :attr:`error` and abandon the file.
     The file descriptor holds the advisory lock of a live temporary
-    (:func:`spikesim.io._atomic.lock_temp`).
+    (:func:`spikesim.io.atomic.lock_temp`).
     """
 
     def __init__(self, path: str | os.PathLike):

@@ -1,6 +1,6 @@
 """PKU ``.dat`` spike files: read (memory-mapped, windowed) and write (atomic).
 
-The format (DESIGN.md §3), as written by the PKU spike cameras and read by
+The format (docs/io.md, docs/architecture.md), as written by the PKU spike cameras and read by
 SpikeCV, Spike-Zoo and the SJDD-Net code:
 
 * no header; the file is a sequence of frames (readouts), nothing else;
@@ -29,12 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
+from spikesim._validate import check_crop, check_window
 from spikesim.cfa import normalize_cfa
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimTypeError, bad_value
-from spikesim.io._atomic import atomic_path, lock_temp
 from spikesim.io._decode import decode_frames
 from spikesim.io._guard import write_error
-from spikesim.io._window import check_crop, check_window
+from spikesim.io.atomic import atomic_path, lock_temp
 
 __all__ = [
     "KNOWN_SENSOR_SIZES",

@@ -51,10 +51,10 @@ from pathlib import Path
 import numpy as np
 
 from spikesim.errors import SpikeSimFormatError, SpikeSimValueError, bad_value
-from spikesim.io._atomic import atomic_path
+from spikesim.io.atomic import atomic_path
 from spikesim.io.dat import DatWriter
 from spikesim.io.index import Dataset, open_dataset
-from spikesim.io.preview import srgb_encode
+from spikesim.srgb import linear_to_srgb
 
 __all__ = ["export_sjdd", "sjdd_noise_label", "GT_ENCODINGS", "SJDD_WINDOW"]
 
@@ -66,7 +66,7 @@ def gt_to_uint8(gt: np.ndarray, encoding: str = "linear") -> np.ndarray:
     """(H, W, 3) linear float GT -> (1, 3, H, W) uint8 0..255 (rounded, clipped)."""
     x = np.clip(np.asarray(gt, np.float64), 0.0, 1.0)
     if encoding == "srgb":
-        x = srgb_encode(x)
+        x = linear_to_srgb(x)
     return np.rint(x * 255.0).astype(np.uint8).transpose(2, 0, 1)[None]
 
 

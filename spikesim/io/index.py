@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimValueError, bad_value
-from spikesim.io._atomic import atomic_path, is_temp_name
+from spikesim.io.atomic import atomic_path, is_temp_name
 from spikesim.io.h5 import Sequence, read_header
 
 __all__ = ["INDEX_NAME", "Dataset", "build_index", "dataset_splits", "load_index", "open_dataset",

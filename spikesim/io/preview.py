@@ -13,16 +13,11 @@ import numpy as np
 
 from spikesim import estimate
 from spikesim.errors import bad_value
+from spikesim.srgb import linear_to_srgb8
 
-__all__ = ["METHODS", "srgb_encode", "estimate_image", "render", "render_frames", "save_image"]
+__all__ = ["METHODS", "estimate_image", "render", "render_frames", "save_image"]
 
 METHODS = ("tfp", "tfi")
-
-
-def srgb_encode(x: np.ndarray) -> np.ndarray:
-    """IEC 61966-2-1 sRGB encoding of linear values (clipped to [0, 1] first)."""
-    x = np.clip(np.asarray(x, np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
 def _rate_of(source) -> float:
@@ -66,7 +61,7 @@ def render(source, readout: int, method: str = "tfp", window: int = 41,
            rate: float | None = None) -> np.ndarray:
     """(H, W, 3) uint8 sRGB-encoded preview at ``readout``."""
     lin = estimate_image(source, readout, method, window, rate)
-    return np.rint(srgb_encode(lin) * 255.0).astype(np.uint8)
+    return linear_to_srgb8(lin)
 
 
 def render_frames(source, readouts, method: str = "tfp", window: int = 41,
@@ -83,7 +78,7 @@ def save_image(path, frames: list[np.ndarray], fps: float = 10.0) -> None:
     """Write one frame as PNG, or several as an animated GIF (by the file suffix)."""
     from PIL import Image
 
-    from spikesim.io._atomic import atomic_path
+    from spikesim.io.atomic import atomic_path
 
     suffix = str(path).lower().rsplit(".", 1)[-1]
     if suffix not in ("png", "gif"):

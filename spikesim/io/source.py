@@ -49,10 +49,10 @@ def firing_rate_stats(src, max_readouts: int = 4096, block: int = 256) -> dict:
     min, 1st/99th percentile and max rate over pixels, and the fraction of
     pixels that never fired.
     """
+    from spikesim.stream import pixel_counts
+
     n = max(1, min(src.n_readouts, int(max_readouts)))
-    counts = np.zeros((src.height, src.width), np.int64)
-    for t in range(0, n, block):
-        counts += src.read_window(t, min(block, n - t)).sum(axis=0, dtype=np.int64)
+    counts = pixel_counts(src, 0, n, block)
     rate = counts / n
     return {"readouts": n, "mean": float(rate.mean()), "min": float(rate.min()),
             "p01": float(np.percentile(rate, 1)), "p99": float(np.percentile(rate, 99)),

@@ -100,7 +100,7 @@ def verify(path: str | os.PathLike, height: int | None = None,
     ``kind="temp"`` and ``ok=True`` (they never sit under a final name; the
     next write removes them).
     """
-    from spikesim.io._atomic import is_stale_temp, is_temp_name
+    from spikesim.io.atomic import is_stale_temp, is_temp_name
 
     path = Path(path)
     if not path.exists():

@@ -23,40 +23,16 @@ largest content speed in pixels per second; nothing then moves more than
 
 from __future__ import annotations
 
-import math
 from abc import abstractmethod
 
 import numpy as np
 from scipy import ndimage
 
-from spikesim.errors import bad_value
+from spikesim._validate import check_positive, check_size, check_time
 from spikesim.scenes.base import Scene
+from spikesim.scenes.video import as_video
 
-__all__ = ["ProceduralScene", "SplineTexture", "check_positive", "check_time"]
-
-
-def check_positive(name: str, value: object, allow_none: bool = False) -> float | None:
-    """Validate a finite, strictly positive number (``None`` allowed if ``allow_none``)."""
-    if value is None and allow_none:
-        return None
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        v = math.nan
-    if isinstance(value, bool) or not math.isfinite(v) or v <= 0:
-        raise bad_value(name, value, "a finite number > 0")
-    return v
-
-
-def check_time(t: object) -> float:
-    """Validate a time in seconds (finite real)."""
-    try:
-        v = float(t)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise bad_value("t", t, "a finite time in seconds") from None
-    if not math.isfinite(v):
-        raise bad_value("t", t, "a finite time in seconds")
-    return v
+__all__ = ["ProceduralScene", "SplineTexture"]
 
 
 class SplineTexture:
@@ -100,7 +76,6 @@ class ProceduralScene(Scene):
 
     def __init__(self, size: tuple[int, int], *, exposure: float = 1.0, max_px: float = 1.0):
         from spikesim.scenes.photometry import check_exposure
-        from spikesim.scenes.sources import check_size
 
         self.height, self.width = check_size(size)
         self.exposure = check_exposure(exposure)
@@ -143,8 +118,6 @@ class ProceduralScene(Scene):
 
     def as_video(self, fps: float, n_frames: int, **kwargs):
         """Render this scene as a video of ``n_frames`` at ``fps`` (see ``video.as_video``)."""
-        from spikesim.scenes.video import as_video
-
         return as_video(self, fps, n_frames, **kwargs)
 
     def __repr__(self) -> str:

@@ -1,7 +1,7 @@
 """The scene protocol every light source implements.
 
 A scene is a function of time giving **linear-light radiance**, relative units,
-nominally 0..1 per channel (DESIGN.md §2).  The simulator asks a scene for
+nominally 0..1 per channel (docs/model.md).  The simulator asks a scene for
 
 * ``height``, ``width``: image size in pixels;
 * ``radiance(t)``: (H, W, 3) float32 radiance at time ``t`` seconds;

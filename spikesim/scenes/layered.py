@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from spikesim._validate import check_positive
 from spikesim.errors import bad_value
-from spikesim.scenes.analytic import ProceduralScene, SplineTexture, check_positive
+from spikesim.scenes.analytic import ProceduralScene, SplineTexture
 from spikesim.scenes.sources import load_image
 
 __all__ = ["Sprites", "RotatingDisk"]

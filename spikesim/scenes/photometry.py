@@ -1,11 +1,10 @@
 """Photometry: turn stored frame values into linear-light radiance.
 
-Scene radiance in spikesim is *linear light, relative units* (DESIGN.md §2):
+Scene radiance in spikesim is *linear light, relative units* (docs/model.md):
 1.0 per channel is full scale, the light at which a pixel fires
 ``full_scale_rate`` spikes per readout.  Video frames are usually stored
 sRGB-encoded, so they are decoded with the sRGB electro-optical transfer
-function (EOTF) of IEC 61966-2-1:1999 as implemented by colour-science
-(:func:`colour.models.eotf_sRGB`)::
+function (EOTF) of IEC 61966-2-1:1999 (:mod:`spikesim.srgb`)::
 
     L = V / 12.92                      for V <= 0.04045
     L = ((V + 0.055) / 1.055) ** 2.4   otherwise
@@ -27,28 +26,13 @@ import math
 import numpy as np
 
 from spikesim.errors import SpikeSimTypeError, bad_value
+from spikesim.srgb import srgb_to_linear
 
 __all__ = [
-    "srgb_to_linear",
-    "linear_to_srgb",
     "SRGB8_LUT",  # noqa: F822 - provided lazily by __getattr__
     "decode_frame",
     "check_exposure",
 ]
-
-
-def srgb_to_linear(values: np.ndarray) -> np.ndarray:
-    """sRGB EOTF (IEC 61966-2-1) per colour-science: encoded 0..1 → linear 0..1 (float64)."""
-    import colour  # imported on use: colour-science takes ~2 s to import
-
-    return np.asarray(colour.models.eotf_sRGB(np.asarray(values, dtype=np.float64)))
-
-
-def linear_to_srgb(values: np.ndarray) -> np.ndarray:
-    """Inverse sRGB EOTF (the encoding), per colour-science: linear → encoded (float64)."""
-    import colour
-
-    return np.asarray(colour.models.eotf_inverse_sRGB(np.asarray(values, dtype=np.float64)))
 
 
 #: Linear value of each 8-bit sRGB code 0..255 (float32), from :func:`srgb_to_linear`.
@@ -60,7 +44,7 @@ def _srgb8_lut() -> np.ndarray:
 
 
 def __getattr__(name: str):
-    # SRGB8_LUT is built on first use (colour-science is slow to import)
+    # SRGB8_LUT is built on first use (computed once)
     if name == "SRGB8_LUT":
         return _srgb8_lut()
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from spikesim.scenes.analytic import ProceduralScene, SplineTexture, check_positive
+from spikesim._validate import check_positive
+from spikesim.scenes.analytic import ProceduralScene, SplineTexture
 from spikesim.scenes.paths import MOTIONS, make_path, peak_speed_per_phase
 from spikesim.scenes.sources import load_image
 

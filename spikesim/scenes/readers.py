@@ -183,12 +183,12 @@ class SceneSource(FrameSource):
         self.name = f"render of {scene.describe().get('name', type(scene).__name__)}"
 
     def read(self, index: int) -> np.ndarray:
-        from spikesim.scenes.photometry import linear_to_srgb
+        from spikesim.srgb import linear_to_srgb8
 
         frame = self.scene.radiance(self._check_index(index) / self.native_fps)
         self.n_decoded += 1
         if self.srgb8:
-            return np.round(linear_to_srgb(np.clip(frame, 0, 1)) * 255).astype(np.uint8)
+            return linear_to_srgb8(frame)
         return np.asarray(frame, np.float32)
 
 

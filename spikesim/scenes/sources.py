@@ -17,10 +17,11 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from spikesim._validate import check_size
 from spikesim.errors import bad_value
 from spikesim.scenes.photometry import decode_frame
 
-__all__ = ["IMAGES", "load_image", "cover_resize", "colorchecker_linear_srgb", "check_size"]
+__all__ = ["IMAGES", "load_image", "cover_resize", "colorchecker_linear_srgb"]
 
 #: Name → (skimage.data function name, one-line description).
 IMAGES: dict[str, tuple[str, str]] = {
@@ -31,18 +32,6 @@ IMAGES: dict[str, tuple[str, str]] = {
     "camera": ("camera", "the classic cameraman (grey, 512x512)"),
     "hubble": ("hubble_deep_field", "Hubble deep field, mostly dark sky (colour, 872x1000)"),
 }
-
-
-def check_size(size: object) -> tuple[int, int]:
-    """Validate ``size=(H, W)`` in pixels, each an integer >= 1."""
-    try:
-        h, w = size  # type: ignore[misc]
-        ok = all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in (h, w))
-    except (TypeError, ValueError):
-        ok = False
-    if not ok or h < 1 or w < 1:
-        raise bad_value("size", size, "(H, W) with integers H >= 1 and W >= 1")
-    return int(h), int(w)
 
 
 @lru_cache(maxsize=16)

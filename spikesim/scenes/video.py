@@ -36,10 +36,10 @@ from collections import OrderedDict
 import cv2
 import numpy as np
 
+from spikesim._validate import check_positive, check_time
 from spikesim.errors import bad_value
 from spikesim.motion import DEFAULT_FLOW, PairMotion, analyse_pair, check_method, interpolate
 from spikesim.motion import n_intermediate as _n_intermediate
-from spikesim.scenes.analytic import check_positive, check_time
 from spikesim.scenes.base import Scene
 from spikesim.scenes.photometry import check_exposure, decode_frame
 from spikesim.scenes.readers import FrameSource, SceneSource, VideoFileSource, open_source

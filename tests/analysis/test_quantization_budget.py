@@ -7,7 +7,7 @@ import pytest
 
 import spikesim as ss
 from spikesim.analysis import noise_budget, noise_sources, quantization_study, saturation_recovery
-from spikesim.analysis.budget import psnr
+from spikesim.analysis.budget import make_reconstructor, psnr
 from spikesim.errors import SpikeSimValueError
 
 MONO = ss.Sensor(cfa=None)
@@ -84,3 +84,35 @@ def test_budget_callable_method_and_errors():
     assert noise_sources(ss.noise.PaperNoise(sigma_g=3.0)) == {"gaussian (sigma_g)":
                                                                {"sigma_g": 0.0}}
     assert psnr(np.full((2, 2), 0.5), np.full((2, 2), 0.6)) == pytest.approx(20.0)
+
+
+def test_budget_finds_methods_through_the_entry_point_group(monkeypatch):
+    """spikesim imports no reconstruction package: names resolve through entry points
+    (spikejdd's is declared in setup.cfg and installed with it)."""
+    from importlib import metadata
+
+    import spikesim.analysis.budget as budget
+
+    offered = {"ep": metadata.EntryPoint("spikejdd", "spikejdd.registry:reconstructor",
+                                         budget.RECONSTRUCTOR_GROUP)}
+    real = metadata.entry_points
+    monkeypatch.setattr(metadata, "entry_points", lambda group=None, **kw: (
+        list(offered.values()) if group == budget.RECONSTRUCTOR_GROUP else real(group=group,
+                                                                                **kw)))
+    res = _budget(method="tfp+bilinear")
+    assert res.data["method"] == "tfp+bilinear" and np.isfinite(res.data["psnr_all"])
+    with pytest.raises(SpikeSimValueError, match="spikejdd: .*no-such-method"):
+        make_reconstructor("no-such-method")
+    offered.clear()
+    with pytest.raises(SpikeSimValueError, match="no reconstruction package"):
+        make_reconstructor("tfp+bilinear")
+
+
+def test_spikejdd_declares_its_reconstructor_entry_point():
+    import configparser
+    from pathlib import Path
+
+    cfg = configparser.ConfigParser()
+    cfg.read(Path(__file__).parents[2] / "setup.cfg")
+    group = cfg["options.entry_points"]["spikesim.reconstructors"]
+    assert "spikejdd = spikejdd.registry:reconstructor" in group

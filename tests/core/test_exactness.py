@@ -1,4 +1,4 @@
-"""Noise-free counts equal the integrate-and-fire theory exactly (DESIGN.md §6)."""
+"""Noise-free counts equal the integrate-and-fire theory exactly (docs/model.md)."""
 
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 import spikesim as ss
-from spikesim.scenes.photometry import linear_to_srgb
+from spikesim.srgb import linear_to_srgb
 
 PEER_DAT = Path(__file__).resolve().parents[3] / "shared" / "fixtures" / "peer-reds" / \
     "203_part2_key_id151.dat"

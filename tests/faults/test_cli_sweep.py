@@ -59,7 +59,7 @@ def _cases():
     cases = []
     for prog, (build, _) in _mains().items():
         for prefix, sub in _subcommands(build()):
-            if prefix != ("demo",):  # `spikesim demo` alone is valid: it builds the demo
+            if prefix != ("demo",):  # `spikesim demo`, `spikejdd demo` alone build the demo
                 cases.append((prog, prefix, None, None))  # no arguments at all
             for action in sub._actions:
                 if not action.option_strings or action.nargs == 0 or action.dest == "help":
@@ -80,7 +80,7 @@ def _base_args(prog, prefix, h5):
         ("spikesim", "convert"): [h5, "o.dat"],
         ("spikesim", "preview"): [h5, "--out", "o.png"],
         ("spikesim", "dataset"): ["missing.toml", "--out", "ds"],
-        ("spikesim", "demo"): ["--limit", "0"],
+        ("spikesim", "demo"): ["--limit", "0"], ("spikejdd", "demo"): ["--limit", "0"],
         ("spikejdd", "reconstruct"): [h5, "--method", "tfp+bilinear", "--out", "rec"],
         ("spikejdd", "evaluate"): ["--data", "missing-folder"],
         ("spikejdd", "train"): ["--data", "missing-folder", "--steps", "1"],
@@ -120,8 +120,8 @@ def _imported():
 
     for name in ("torch", "spikejdd.train", "spikejdd.evaluate", "spikejdd.registry",
                  "spikejdd.capture", "spikejdd.pipelines", "spikesim.analysis",
-                 "spikesim.dataset", "spikesim.io.preview", "spikesim.demo", "cv2", "PIL.Image",
-                 "matplotlib.pyplot"):
+                 "spikesim.dataset", "spikesim.io.preview", "spikesim.demo", "spikejdd.demo", "cv2",
+                 "PIL.Image", "matplotlib.pyplot"):
         try:
             importlib.import_module(name)
         except ImportError:

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from spikesim.errors import SpikeSimTypeError, SpikeSimValueError
-from spikesim.scenes.photometry import SRGB8_LUT, decode_frame, linear_to_srgb, srgb_to_linear
+from spikesim.scenes.photometry import SRGB8_LUT, decode_frame
+from spikesim.srgb import linear_to_srgb, linear_to_srgb8, srgb_to_linear
 
 
 def test_lut_equals_colour_eotf_for_every_code():
@@ -58,3 +59,13 @@ def test_bad_frames():
         decode_frame(np.zeros((2, 2), np.int32))
     with pytest.raises(SpikeSimValueError, match="shape"):
         decode_frame(np.zeros((2, 2, 2), np.uint8))
+
+
+def test_the_one_srgb_curve_equals_colour_science_both_ways():
+    v = np.linspace(0.0, 1.5, 3001)
+    np.testing.assert_array_equal(srgb_to_linear(v), colour.models.eotf_sRGB(v))
+    x = np.linspace(0.0, 1.0, 3001)
+    np.testing.assert_array_equal(linear_to_srgb(x), colour.models.eotf_inverse_sRGB(x))
+    np.testing.assert_allclose(linear_to_srgb([-1.0, 2.0]), [0.0, 1.0], rtol=0, atol=1e-15)  # clip
+    codes = linear_to_srgb8(srgb_to_linear(np.arange(256) / 255.0))
+    np.testing.assert_array_equal(codes, np.arange(256))  # every 8-bit code round-trips

@@ -261,10 +261,10 @@ def test_reconstruct_dat_capture_writes_side_by_side_panels(tmp_path, capsys):
 
 
 def test_demo_checks_the_device_before_any_work(tmp_path, capsys):
-    from spikesim.cli import main as spikesim_main
+    from spikejdd.cli import main as spikejdd_main
 
     out = tmp_path / "demo"
-    assert spikesim_main(["demo", "--out", str(out), "--size", "32", "--limit", "1",
+    assert spikejdd_main(["demo", "--out", str(out), "--size", "32", "--limit", "1",
                           "--device", "cuda:7"]) != 0
     err = capsys.readouterr().err.strip()
     assert "cuda:7" in err and len(err.splitlines()) == 1

@@ -159,6 +159,17 @@ def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Pa
         The name the finished file gets.  Its folder must exist.
     overwrite : bool
         If False and ``final`` exists, raise before writing anything.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> from spikesim.io import atomic_path
+    >>> with atomic_path("table.csv") as tmp:
+    ...     _ = Path(tmp).write_text("a,b\\n1,2\\n")
+    ...     Path("table.csv").exists()  # not yet: only the temporary exists
+    False
+    >>> Path("table.csv").read_text().splitlines()
+    ['a,b', '1,2']
     """
     final = Path(final)
     parent = final.parent if str(final.parent) else Path(".")

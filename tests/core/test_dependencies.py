@@ -1,0 +1,91 @@
+"""The packages depend one way: spikejdd imports spikesim, never the reverse."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _imports(path: Path):
+    """(line, module) of every import in ``path``, at any depth (function-level too)."""
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+        if isinstance(node, ast.Import):
+            yield from ((node.lineno, a.name) for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            yield node.lineno, node.module
+
+
+def test_spikesim_never_imports_spikejdd():
+    found = [f"{p.relative_to(ROOT)}:{line} imports {mod}"
+             for p in sorted((ROOT / "spikesim").rglob("*.py"))
+             for line, mod in _imports(p) if mod.split(".")[0] == "spikejdd"]
+    assert not found, "\n".join(found)
+
+
+def test_the_check_sees_function_level_imports(tmp_path):
+    f = tmp_path / "m.py"
+    f.write_text("def f():\n    import spikejdd.models\n    from spikejdd import x\n")
+    assert [m for _, m in _imports(f)] == ["spikejdd.models", "spikejdd"]
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Module → project modules it imports (any depth), package ``__init__`` files left
+    out as targets: a package importing its own modules is how its public names work."""
+    files = {_module_name(p): p for pkg in ("spikesim", "spikejdd")
+             for p in (ROOT / pkg).rglob("*.py")}
+    packages = {m for m, p in files.items() if p.name == "__init__.py"}
+    graph = {}
+    for mod, path in files.items():
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets.add(node.module)
+                targets.update(f"{node.module}.{a.name}" for a in node.names)
+            elif isinstance(node, ast.Import):
+                targets.update(a.name for a in node.names)
+        graph[mod] = {t for t in targets if t in files and t not in packages and t != mod}
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, found, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                found.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_import_circle_between_modules():
+    assert _cycles(_import_graph()) == []
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
