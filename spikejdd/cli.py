@@ -313,15 +313,16 @@ def _reconstruct(args) -> int:
     device = _configure(args)
     options = {"device": device}
     if src.suffix.lower() == ".dat":
-        from spikejdd.capture import Capture
+        from spikejdd.capture import centred_window
+        from spikesim.io import open_dat
 
-        cap = Capture(src, args.height or 250, args.width or 400, cfa=args.cfa or "RGGB",
-                      flip=not args.no_flip, head_columns=args.head_columns)
+        cap = open_dat(src, args.height or 250, args.width or 400, flip=not args.no_flip,
+                       head_columns=args.head_columns, cfa=args.cfa or "RGGB")
         n, cfa, rate = cap.n_readouts, cap.cfa, args.rate or 0.6
         centers = _centers(args.centers, [n // 2])
 
         def window(c, length):
-            return cap.window(c, length)[0]
+            return centred_window(cap, c, length)[0]
     elif Path(src).is_dir():  # a dataset folder or root: every sequence of it
         from spikesim.io import open_dataset
 

@@ -7,7 +7,9 @@ serves a simulated :class:`~spikesim.SpikeStream`, an in-memory ``(T, H, W)``
 
 Two streaming statistics live here because every study needs them:
 
-* :func:`pixel_counts` — spikes per pixel over readouts ``[start, stop)``;
+* :func:`pixel_counts` — spikes per pixel over readouts ``[start, stop)``
+  (:func:`spikesim.stream.pixel_counts`, the one counting routine, at this
+  module's block size);
 * :func:`pixel_intervals` — inter-spike-interval moments per pixel (count,
   sum, sum of squares of the intervals in readouts, between consecutive
   spikes only; the open intervals at the ends are never counted) and,
@@ -21,7 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from spikesim._validate import check_window
 from spikesim.errors import SpikeSimTypeError, bad_value
+from spikesim.stream import pixel_counts as stream_pixel_counts
 
 __all__ = ["Capture", "as_capture", "pixel_counts", "pixel_intervals", "IntervalMoments"]
 
@@ -62,6 +66,12 @@ class Capture:
         if stop <= start:
             return np.zeros((0, self.height, self.width), np.uint8)
         return np.asarray(self._reader(start, stop), dtype=np.uint8)
+
+    def read_window(self, start: int = 0, length: int | None = None) -> np.ndarray:
+        """Readouts ``[start, start + length)`` (default: to the end): the
+        :class:`spikesim.SpikeSource` protocol."""
+        start, length = check_window(start, length, self.n_readouts)
+        return self.read(start, start + length)
 
     def blocks(self, start: int = 0, stop: int | None = None, block: int = BLOCK_READOUTS):
         """Yield ``(t0, spikes)`` for consecutive blocks of at most ``block`` readouts."""
@@ -122,16 +132,9 @@ def as_capture(source, *, height: int | None = None, width: int | None = None,
 def pixel_counts(cap: Capture, start: int = 0, stop: int | None = None,
                  progress: bool = False) -> np.ndarray:
     """(H, W) int64 spikes of each pixel over readouts ``[start, stop)``."""
-    counts = np.zeros((cap.height, cap.width), np.int64)
     stop = cap.n_readouts if stop is None else stop
-    bar = _bar(progress, stop - start, "count")
-    for _, blk in cap.blocks(start, stop):
-        counts += blk.sum(axis=0, dtype=np.int64)
-        if bar is not None:
-            bar.update(blk.shape[0])
-    if bar is not None:
-        bar.close()
-    return counts
+    return stream_pixel_counts(cap, start, stop, BLOCK_READOUTS,
+                               read=lambda t, n: cap.read(t, t + n), progress=progress)
 
 
 @dataclass

@@ -22,7 +22,9 @@ def test_every_reader_is_a_source_with_the_same_counts(stream, tmp_path):
     seq = ss.io.open_h5(tmp_path / "s.h5")
     dat = ss.io.open_dat(tmp_path / "s.dat", 6, 13)
     expected = stream.unpack().sum(axis=0, dtype=np.int64)
-    for src in (stream, seq, dat):
+    from spikesim.analysis import as_capture
+
+    for src in (stream, seq, dat, as_capture(stream), as_capture(stream.unpack())):
         assert isinstance(src, ss.SpikeSource), type(src).__name__
         assert (src.n_readouts, src.height, src.width) == (300, 6, 13)
         np.testing.assert_array_equal(src.read_window(17, 40), stream.unpack()[17:57])

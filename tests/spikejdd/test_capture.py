@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from fixture_paths import PEER_REDS
 
-from spikejdd.capture import Capture, CaptureWindows
+from spikejdd.capture import CaptureWindows, centred_window
 from spikesim.cfa import mask_planes
 from spikesim.errors import SpikeSimValueError
+from spikesim.io import open_dat
 
 DAT = PEER_REDS / "203_part2_key_id151.dat"
 pytestmark = pytest.mark.skipif(not DAT.is_file(), reason="shared fixtures not present")
@@ -17,11 +18,11 @@ pytestmark = pytest.mark.skipif(not DAT.is_file(), reason="shared fixtures not p
 def test_window_crop_and_pattern():
     raw = np.fromfile(DAT, np.uint8)
     ref = np.unpackbits(raw.reshape(-1, 250, 50), axis=-1, bitorder="little")[:, ::-1]
-    cap = Capture(DAT, 250, 400, cfa="RGGB")
-    spikes, cfa = cap.window(150, 41, crop=(11, 5, 20, 30))
+    cap = open_dat(DAT, 250, 400, cfa="RGGB")
+    spikes, cfa = centred_window(cap, 150, 41, crop=(11, 5, 20, 30))
     np.testing.assert_array_equal(spikes, ref[130:171, 11:31, 5:35])
     assert cfa == "BGGR"  # odd row and odd column offset
-    unflipped, _ = Capture(DAT, 250, 400, flip=False).window(150, 3)
+    unflipped, _ = centred_window(open_dat(DAT, 250, 400, flip=False), 150, 3)
     np.testing.assert_array_equal(unflipped, ref[149:152, ::-1])
     ds = CaptureWindows(cap, centers=[150], window=39, crop=(1, 0, 8, 8), packed=True)
     s = ds[0]
@@ -30,4 +31,4 @@ def test_window_crop_and_pattern():
     with pytest.raises(SpikeSimValueError, match="centers"):
         CaptureWindows(cap, centers=[5], window=39)
     with pytest.raises(SpikeSimValueError, match="window"):
-        cap.window(150, 400)
+        centred_window(cap, 150, 400)
