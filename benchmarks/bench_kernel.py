@@ -326,7 +326,7 @@ def to_markdown(r) -> str:
         f"paper GN {m['paper GN σ=10']:.0f} MiB.",
         "",
         "Physical mode has no NumPy reference (its Poisson and jitter draws are checked",
-        "statistically in tests/core/test_noise_statistics.py).",
+        "statistically in tests/spikesim/test_noise_statistics.py).",
         "",
     ]
     return "\n".join(lines)

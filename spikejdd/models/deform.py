@@ -17,7 +17,7 @@ Backends: torchvision's compiled operator when ``torchvision`` imports
 implementation — one ``grid_sample`` call gathers every tap of every offset
 group, a grouped matrix product applies the weights.  It is differentiable in
 the input, offsets, mask, weight and bias, works on CPU and CUDA, and is
-checked against an independent loop-based reference in ``tests/sjdd``.
+checked against an independent loop-based reference in ``tests/spikejdd/models``.
 
 :class:`DeformConv2d` is the module (parameter names ``weight``/``bias`` as
 torchvision's, so checkpoints interchange).

@@ -11,7 +11,7 @@ Conventions of the Markdown files (kept invisible to readers):
   dropped;
 * ``<!-- doc-setup ... -->`` right before a block holds Python run first, in
   the same namespace and directory (to make a small input the example names;
-  the makers in ``doc_fixtures.py``, e.g. ``make_reds()``, are in scope);
+  the makers in ``tests/support/doc_fixtures.py``, e.g. ``make_reds()``, are in scope);
 * ``<!-- doc-file: NAME -->`` right before a block of any language writes the
   block to ``NAME`` in the directory instead of running it (a manifest, a
   config) so that later blocks can use it;
@@ -34,8 +34,7 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parent))
-import doc_fixtures  # noqa: E402
+from tests.support import doc_fixtures
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]

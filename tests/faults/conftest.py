@@ -7,16 +7,12 @@ and one case per kind of fault.  ``make test-faults`` sets
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-# make fault_helpers.py importable as a plain module (as tests/conftest.py does for tests/core)
-sys.path.insert(0, str(Path(__file__).parent))
-
-from fault_helpers import small_stream  # noqa: E402
+from tests.support.fault_helpers import small_stream
 
 
 def pytest_collection_modifyitems(config, items):

@@ -16,7 +16,8 @@ import io
 import signal
 
 import pytest
-from fault_helpers import FULL
+
+from tests.support.fault_helpers import FULL
 
 # invalid values by option kind: the first of each is the default run's
 BAD_VALUES = {

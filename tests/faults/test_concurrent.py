@@ -10,9 +10,9 @@ from __future__ import annotations
 import subprocess
 
 import pytest
-from fault_helpers import FULL, cli_command, cli_env, no_temps, write_manifest
 
 from spikesim.io import verify
+from tests.support.fault_helpers import FULL, cli_command, cli_env, no_temps, write_manifest
 
 
 @pytest.mark.parametrize("runs,workers", [(2, 1)] + ([(3, 2)] if FULL else []))

@@ -20,11 +20,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from fault_helpers import FULL
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from spikesim.errors import SpikeSimError
+from tests.support.fault_helpers import FULL
 
 EXAMPLES = 150 if FULL else 12
 SETTINGS = settings(max_examples=EXAMPLES, deadline=None, derandomize=not FULL,

@@ -13,7 +13,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fault_helpers import (
+
+from spikesim.errors import SpikeSimFileError
+from tests.support.fault_helpers import (
     assert_clean_failure,
     full_only,
     no_temps,
@@ -22,8 +24,6 @@ from fault_helpers import (
     small_stream,
     write_manifest,
 )
-
-from spikesim.errors import SpikeSimFileError
 
 LIMIT = 200 * 1024
 BIG = ["astronaut", "--motion", "pan", "--size", "64x64", "--readouts", "20000",

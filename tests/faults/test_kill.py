@@ -17,7 +17,9 @@ import time
 from pathlib import Path
 
 import pytest
-from fault_helpers import (
+
+from spikesim.io import verify
+from tests.support.fault_helpers import (
     alive,
     children_of,
     cli_command,
@@ -28,8 +30,6 @@ from fault_helpers import (
     run_cli,
     write_manifest,
 )
-
-from spikesim.io import verify
 
 LONG = ["astronaut", "--motion", "pan", "--size", "64x64", "--readouts", "2000000",
         "--force", "--out"]

@@ -12,10 +12,10 @@ import warnings
 
 import numpy as np
 import pytest
-from fault_helpers import cli_command, cli_env, full_only
 
 import spikesim as ss
 from spikesim.errors import SpikeSimError, SpikeSimTypeError, SpikeSimValueError
+from tests.support.fault_helpers import cli_command, cli_env, full_only
 
 
 def _main(prog, argv):

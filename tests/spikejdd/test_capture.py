@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fixture_paths import PEER_REDS
 
 from spikejdd.capture import CaptureWindows, centred_window
 from spikesim.cfa import mask_planes
 from spikesim.errors import SpikeSimValueError
 from spikesim.io import open_dat
+from tests.support.fixture_paths import PEER_REDS
 
 DAT = PEER_REDS / "203_part2_key_id151.dat"
 pytestmark = pytest.mark.skipif(not DAT.is_file(), reason="shared fixtures not present")

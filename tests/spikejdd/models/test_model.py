@@ -8,8 +8,7 @@ import torch
 from spikejdd.models import DEFAULT, LITE, PUBLISHED, PUBLISHED_PARAMETERS, SJDDConfig, SJDDNet
 from spikejdd.models.sjdd import _TimeConv, block_starts, count_parameters
 from spikesim.errors import SpikeSimTypeError, SpikeSimValueError
-
-from .conftest import TINY, make_inputs
+from tests.support.sjdd_helpers import TINY, make_inputs
 
 #: Documented in docs/sjdd.md and spikejdd/weights/sjdd-lite.md.
 LITE_PARAMETERS = 370_899

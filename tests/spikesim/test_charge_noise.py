@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from core_helpers import Keyframes, counts, flat_rows
 
 import spikesim as ss
 from spikesim.analysis import theory
 from spikesim.errors import SpikeSimValueError
 from spikesim.reference import reference_simulate
+from tests.support.core_helpers import Keyframes, counts, flat_rows
 
 W = 256
 

@@ -8,12 +8,12 @@ import json
 import h5py
 import numpy as np
 import pytest
-from dataset_helpers import assert_same_files, reds_root, write_frames
 
 import spikesim as ss
 from spikesim.dataset import build_dataset, parse_manifest, plan_tasks
 from spikesim.errors import SpikeSimValueError
 from spikesim.io import build_index, open_dataset, read_header
+from tests.support.dataset_helpers import assert_same_files, reds_root, write_frames
 
 
 def clip_manifest(root, **source):

@@ -113,6 +113,6 @@ def test_spikejdd_declares_its_reconstructor_entry_point():
     from pathlib import Path
 
     cfg = configparser.ConfigParser()
-    cfg.read(Path(__file__).parents[2] / "setup.cfg")
+    cfg.read(Path(__file__).parents[3] / "setup.cfg")
     group = cfg["options.entry_points"]["spikesim.reconstructors"]
     assert "spikejdd = spikejdd.registry:reconstructor" in group

@@ -15,8 +15,7 @@ from spikejdd.models import (
     save_checkpoint,
     to_published_state_dict,
 )
-
-from .conftest import TINY, make_inputs
+from tests.support.sjdd_helpers import TINY, make_inputs
 
 
 def test_save_load_reproduces_outputs_and_provenance(tmp_path):

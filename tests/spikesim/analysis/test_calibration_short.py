@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 import pytest
-from fixture_paths import PEER_REDS
 
 from spikesim.analysis import calibrate
 from spikesim.analysis.calibrate_fit import DARK_FALLBACK
@@ -22,6 +21,7 @@ from spikesim.analysis.capture import as_capture, pixel_intervals
 from spikesim.analysis.short_capture import FAR_FROM_DEFAULTS, FIDELITY_SETTINGS, moving_capture
 from spikesim.cli import main
 from spikesim.errors import SpikeSimValueError
+from tests.support.fixture_paths import PEER_REDS
 
 STRONG, WEAK = FAR_FROM_DEFAULTS
 DISTANCES = ("rate KS (mean D)", "interval CV error", "spatial spread error")

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from core_helpers import Keyframes
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import spikesim as ss
 from spikesim.reference import reference_simulate
+from tests.support.core_helpers import Keyframes
 
 CFAS = ["RGGB", "BGGR", "GRBG", "GBRG", None]
 RESETS = ["modulo", "subtract", "zero"]

@@ -6,9 +6,9 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from core_helpers import Keyframes, initial_fraction
 
 import spikesim as ss
+from tests.support.core_helpers import Keyframes, initial_fraction
 
 CLOCK = 1000.0
 

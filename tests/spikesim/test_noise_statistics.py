@@ -11,13 +11,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from core_helpers import counts, flat_rows
 from scipy import stats
 
 import spikesim as ss
 from spikesim import rng
 from spikesim._kernels import poisson
 from spikesim.reference import _f32_pair, normal_np
+from tests.support.core_helpers import counts, flat_rows
 
 N = 4000  # readouts
 W = 1024  # pixels per intensity

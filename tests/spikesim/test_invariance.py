@@ -5,9 +5,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 import pytest
-from core_helpers import Keyframes
 
 import spikesim as ss
+from tests.support.core_helpers import Keyframes
 
 NOISES = [
     None,

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from core_helpers import Keyframes
 
 import spikesim as ss
+from tests.support.core_helpers import Keyframes
 
 
 @pytest.mark.parametrize("cfa", ["RGGB", None])

@@ -7,7 +7,6 @@ import textwrap
 
 import numpy as np
 import pytest
-from dataset_helpers import assert_same_files
 
 from spikesim.dataset import (
     build_dataset,
@@ -21,6 +20,7 @@ from spikesim.dataset import (
 )
 from spikesim.errors import SpikeSimFileError, SpikeSimValueError
 from spikesim.io import open_dataset
+from tests.support.dataset_helpers import assert_same_files
 
 
 def small_manifest(count=3, size=(24, 40), extra_sources=(), **dataset):

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 import torch
 
-from spikejdd.models import LITE, SJDDConfig
+from spikejdd.models import SJDDConfig
 from spikesim.cfa import mask_planes
 
 #: A very small model (9 readouts) so that tests run in seconds on 2 CPU cores.
@@ -22,13 +21,3 @@ def make_inputs(n_readouts: int, h: int, w: int, batch: int = 1, seed: int = 0,
     spikes = (rng.random((batch, n_readouts, h, w)) < 0.35).astype(np.float32)
     mask = np.repeat(mask_planes(cfa, h, w)[None], batch, axis=0)
     return torch.from_numpy(spikes), torch.from_numpy(mask)
-
-
-@pytest.fixture
-def tiny_config():
-    return TINY
-
-
-@pytest.fixture
-def lite_config():
-    return LITE

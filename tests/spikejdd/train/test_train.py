@@ -13,8 +13,7 @@ from spikejdd.cli import main
 from spikejdd.models import SJDDNet, load_checkpoint, load_model, save_checkpoint
 from spikejdd.train import EpochSampler, TrainConfig, noise_map_target, synthesize, train
 from spikesim.errors import SpikeSimValueError
-
-from .conftest import TINY
+from tests.support.sjdd_helpers import TINY
 
 
 @pytest.fixture(scope="module")

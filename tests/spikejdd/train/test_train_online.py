@@ -17,8 +17,7 @@ from spikejdd.train.pictures import PICTURES, picture_path
 from spikejdd.train.scenes import SLOW_PX_S, draw_scene, draw_speed
 from spikejdd.train.validation import validation_frames
 from spikesim.errors import SpikeSimValueError
-
-from .conftest import TINY
+from tests.support.sjdd_helpers import TINY
 
 
 def _benchmark_pictures() -> set[str]:

@@ -5,12 +5,12 @@ from __future__ import annotations
 import json
 
 import pytest
-from dataset_helpers import davis_root, reds_root
 
 from spikesim.cli import main
 from spikesim.dataset import load_manifest, plan_tasks
 from spikesim.errors import SpikeSimValueError
 from spikesim.io import build_index
+from tests.support.dataset_helpers import davis_root, reds_root
 
 
 @pytest.fixture(scope="module")

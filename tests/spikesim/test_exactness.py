@@ -6,9 +6,9 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from core_helpers import counts, flat_rows, initial_fraction
 
 import spikesim as ss
+from tests.support.core_helpers import counts, flat_rows, initial_fraction
 
 # ~20 intensities: 0, 1, values where r·I is an exact binary fraction, and generic ones.
 LEVELS = [0.0, 1.0, 0.5, 0.25, 0.125, 0.0625, 0.75, 0.375, 1 / 3, 0.1, 0.2, 0.3, 0.45, 0.6,

@@ -6,11 +6,11 @@ import warnings
 
 import numpy as np
 import pytest
-from fixture_paths import PEER_REDS
 from PIL import Image
 
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimValueError
 from spikesim.io import DatFile, DatWriter, guess_dat_shape, open_dat, read_dat, write_dat
+from tests.support.fixture_paths import PEER_REDS
 
 PEER = PEER_REDS
 PEER_DAT = PEER / "203_part2_key_id151.dat"

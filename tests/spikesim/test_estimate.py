@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fixture_paths import PEER_REDS
 
 from spikesim.errors import SpikeSimTypeError, SpikeSimValueError
 from spikesim.estimate import tfi, tfp, tfp_std, window_bounds
+from tests.support.fixture_paths import PEER_REDS
 
 FIXTURE = PEER_REDS
 
