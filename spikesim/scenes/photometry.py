@@ -4,8 +4,8 @@ Scene radiance in spikesim is *linear light, relative units* (DESIGN.md §2):
 1.0 per channel is full scale, the light at which a pixel fires
 ``full_scale_rate`` spikes per readout.  Video frames are usually stored
 sRGB-encoded, so they are decoded with the sRGB electro-optical transfer
-function (EOTF) of IEC 61966-2-1:1999 as implemented by colour-science
-(:func:`colour.models.eotf_sRGB`)::
+function (EOTF) of IEC 61966-2-1:1999 exactly as colour-science implements it
+(:func:`colour.models.eotf_sRGB`; same operations, tested bit-equal)::
 
     L = V / 12.92                      for V <= 0.04045
     L = ((V + 0.055) / 1.055) ** 2.4   otherwise
@@ -37,18 +37,31 @@ __all__ = [
 ]
 
 
-def srgb_to_linear(values: np.ndarray) -> np.ndarray:
-    """sRGB EOTF (IEC 61966-2-1) per colour-science: encoded 0..1 → linear 0..1 (float64)."""
-    import colour  # imported on use: colour-science takes ~2 s to import
+#: Encoded value of the linear knee 0.0031308 (colour-science computes it the same way).
+_SRGB_KNEE = 0.0031308 * 12.92
 
-    return np.asarray(colour.models.eotf_sRGB(np.asarray(values, dtype=np.float64)))
+
+def _spow(a: np.ndarray, p: float) -> np.ndarray:
+    """``sign(a) * |a| ** p`` (colour-science's ``spow``: no NaN for negative ``a``)."""
+    return np.sign(a) * np.abs(a) ** p
+
+
+def srgb_to_linear(values: np.ndarray) -> np.ndarray:
+    """sRGB EOTF (IEC 61966-2-1) per colour-science: encoded 0..1 → linear 0..1 (float64).
+
+    The same operations in the same order as :func:`colour.models.eotf_sRGB`
+    (tested bit-equal to it) without importing colour-science, which takes
+    seconds: every worker process of a dataset build decodes frames."""
+    v = np.asarray(values, dtype=np.float64)
+    return np.where(_SRGB_KNEE >= v, v / 12.92, _spow((v + 0.055) / 1.055, 2.4))
 
 
 def linear_to_srgb(values: np.ndarray) -> np.ndarray:
-    """Inverse sRGB EOTF (the encoding), per colour-science: linear → encoded (float64)."""
-    import colour
+    """Inverse sRGB EOTF (the encoding), per colour-science: linear → encoded (float64).
 
-    return np.asarray(colour.models.eotf_inverse_sRGB(np.asarray(values, dtype=np.float64)))
+    Bit-equal to :func:`colour.models.eotf_inverse_sRGB` (tested), without importing it."""
+    v = np.asarray(values, dtype=np.float64)
+    return np.where(v <= 0.0031308, v * 12.92, 1.055 * _spow(v, 1 / 2.4) - 0.055)
 
 
 #: Linear value of each 8-bit sRGB code 0..255 (float32), from :func:`srgb_to_linear`.
@@ -60,7 +73,7 @@ def _srgb8_lut() -> np.ndarray:
 
 
 def __getattr__(name: str):
-    # SRGB8_LUT is built on first use (colour-science is slow to import)
+    # SRGB8_LUT is built on first use
     if name == "SRGB8_LUT":
         return _srgb8_lut()
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

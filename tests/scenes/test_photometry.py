@@ -58,3 +58,20 @@ def test_bad_frames():
         decode_frame(np.zeros((2, 2), np.int32))
     with pytest.raises(SpikeSimValueError, match="shape"):
         decode_frame(np.zeros((2, 2, 2), np.uint8))
+
+
+def test_transfer_functions_are_bit_equal_to_colour_science():
+    """spikesim computes the sRGB curves itself (importing colour-science takes seconds in
+    every worker process); the bits must be colour-science's, codes and floats alike."""
+    rng = np.random.default_rng(7)
+    values = np.concatenate([
+        np.arange(256) / 255.0, np.arange(65536) / 65535.0,
+        rng.random(200_000), rng.random(20_000) * 0.1, rng.normal(0, 2, 20_000),
+        np.linspace(0.04, 0.041, 10_001), np.linspace(0.003, 0.0032, 10_001),
+        rng.random(200_000).astype(np.float32), [0.0, -0.0, 1.0, 0.0031308, 0.04045]])
+    for ours, theirs in ((srgb_to_linear, colour.models.eotf_sRGB),
+                         (linear_to_srgb, colour.models.eotf_inverse_sRGB)):
+        a, b = np.asarray(ours(values)), np.asarray(theirs(values))
+        assert a.dtype == b.dtype == np.float64
+        np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64))
+        assert float(ours(0.5)) == float(theirs(0.5))
