@@ -105,3 +105,54 @@ def test_pool_of_batches_writes_the_serial_files(reds, tmp_path):
     assert max(len(b) for b in pool_batches([t.to_dict() for t in plan_tasks(m)], 2)) == 2
     assert_same_files(tmp_path / "serial", tmp_path / "pool")
     assert {r["file"] for r in pool.records} == {r["file"] for r in serial.records}
+
+
+DIES = """
+import multiprocessing
+import os
+
+import numpy as np
+
+from spikesim.scenes import Static
+
+
+class Dies(Static):
+    def radiance(self, t):
+        if multiprocessing.parent_process() is not None:  # never the test process
+            os._exit(3)
+        return super().radiance(t)
+
+
+def make(index, size, seed):
+    img = np.full(tuple(size) + (3,), 0.1 + 0.05 * index, np.float32)
+    return Dies(img) if index == 1 else Static(img)
+"""
+
+
+@pytest.mark.slow  # starts pools and lone retries: about 20 s, 60 s loaded
+def test_a_batch_lost_with_its_worker_fails_only_the_culprit(tmp_path, monkeypatch):
+    """A worker dying inside a batch loses the whole batch: the sequences it had
+    finished are checked and kept, the others made again one by one."""
+    import sys
+
+    from spikesim.dataset import batches
+
+    (tmp_path / "dies_batch.py").write_text(DIES)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "dies_batch", raising=False)
+    # batch these factory tasks as if they were clips of one video (grouping is parent-side)
+    monkeypatch.setattr(batches, "_video_of", lambda task: "one video")
+    m = parse_manifest({
+        "dataset": {"name": "d", "seed": 1, "size": [16, 24], "window": 5},
+        "sensor": {"preset": "ideal"},
+        "noise": [{"mode": "none", "label": "clean"}],
+        "sources": [{"kind": "python", "factory": "dies_batch:make", "count": 8,
+                     "split": "inj"}],
+    })
+    tasks = [t.to_dict() for t in plan_tasks(m)]
+    assert [len(b) for b in pool_batches(tasks, 2)] == [2, 2, 2, 2]
+    s = build_dataset(m, tmp_path / "out", workers=2, progress=False)
+    assert (s.done, s.failed) == (7, 1), [r["error"] for r in s.failures]
+    assert s.failures[0]["file"] == tasks[1]["file"] and "died" in s.failures[0]["error"]
+    assert sorted(r["file"] for r in s.records if r["status"] == "done") == sorted(
+        t["file"] for t in tasks if t["file"] != tasks[1]["file"])
