@@ -148,14 +148,21 @@ def _sample(img: np.ndarray, mx: np.ndarray, my: np.ndarray, cubic: bool = False
     return cv2.remap(img, mx, my, interp, borderMode=cv2.BORDER_REPLICATE)
 
 
+def sq_norm(v: np.ndarray) -> np.ndarray:
+    """Squared length of (..., 2) vectors: the same bits as ``(v**2).sum(-1)``, several
+    times faster (no reduction over a length-2 axis)."""
+    x, y = v[..., 0], v[..., 1]
+    return x * x + y * y
+
+
 def consistency(fwd: np.ndarray, bwd: np.ndarray) -> np.ndarray:
     """Boolean (H, W): pixels whose forward flow is confirmed by the backward flow."""
     h, w = fwd.shape[:2]
     xs, ys = _grid(h, w)
     mx, my = xs + fwd[..., 0], ys + fwd[..., 1]
     back = _sample(bwd, mx, my)
-    err = ((fwd + back) ** 2).sum(-1)
-    ok = err <= 0.01 * ((fwd**2).sum(-1) + (back**2).sum(-1)) + 0.5
+    err = sq_norm(fwd + back)
+    ok = err <= 0.01 * (sq_norm(fwd) + sq_norm(back)) + 0.5
     inside = (mx >= 0) & (mx <= w - 1) & (my >= 0) & (my <= h - 1)
     return ok & inside
 
@@ -187,8 +194,8 @@ def analyse_pair(
     fwd = compute_flow(g0, g1, method)
     bwd = compute_flow(g1, g0, method)
     v0, v1 = consistency(fwd, bwd), consistency(bwd, fwd)
-    mag0 = np.sqrt((fwd**2).sum(-1))
-    mag1 = np.sqrt((bwd**2).sum(-1))
+    mag0 = np.sqrt(sq_norm(fwd))
+    mag1 = np.sqrt(sq_norm(bwd))
     parts = [m[v] for m, v in ((mag0, v0), (mag1, v1)) if v.any()]
     disp = max(float(p.max()) for p in parts) if parts else float(max(mag0.max(), mag1.max()))
     return PairMotion(False, disp, fwd, bwd, v0, v1, time.perf_counter() - t0)
@@ -233,10 +240,12 @@ def _flow_at(pair: PairMotion, tau: float, occlusion: bool) -> np.ndarray:
         every = np.ones((h, w), bool)
         wsum, vsum = _splat_flows(pair, tau, every, every)
     filled = wsum > 1e-3
-    u = np.zeros((h, w, 2), np.float32)
     if not filled.any():
-        return u
-    u[filled] = vsum[filled] / wsum[filled][:, None]
+        return np.zeros((h, w, 2), np.float32)
+    # vsum / wsum where filled, 0 elsewhere (whole-array operations: the same bits as
+    # dividing the filled pixels alone, without slow boolean indexing)
+    q = vsum / np.where(filled, wsum, 1.0)[..., None]
+    u = np.where(filled[..., None], q, 0.0).astype(np.float32)
     if not filled.all():
         idx = ndimage.distance_transform_edt(~filled, return_distances=False, return_indices=True)
         u = u[idx[0], idx[1]]
@@ -276,11 +285,11 @@ def interpolate(
     if occlusion:
         # a candidate counts when the pixel sampled there moves with the local motion u
         # (it belongs to the surface seen at x at time tau) and lies inside the frame
-        tol = 1.0 + 0.1 * np.sqrt((u**2).sum(-1))
+        tol = 1.0 + 0.1 * np.sqrt(sq_norm(u))
         d0 = _sample(pair.fwd, m0x, m0y) - u
         d1 = -_sample(pair.bwd, m1x, m1y) - u
-        v0 = (np.sqrt((d0**2).sum(-1)) <= tol).astype(np.float32)
-        v1 = (np.sqrt((d1**2).sum(-1)) <= tol).astype(np.float32)
+        v0 = (np.sqrt(sq_norm(d0)) <= tol).astype(np.float32)
+        v1 = (np.sqrt(sq_norm(d1)) <= tol).astype(np.float32)
         v0 *= (m0x >= -0.5) & (m0x <= w - 0.5) & (m0y >= -0.5) & (m0y <= h - 0.5)
         v1 *= (m1x >= -0.5) & (m1x <= w - 0.5) & (m1y >= -0.5) & (m1y <= h - 0.5)
         w0, w1 = (1 - tau) * v0, tau * v1

@@ -3,7 +3,7 @@
 Decoding (the electro-optical transfer function, EOTF) maps an encoded value
 V in [0, 1] to linear light L::
 
-    L = V / 12.92                      for V <= 0.04045
+    L = V / 12.92                      for V <= 0.0031308 · 12.92 (≈ 0.04045)
     L = ((V + 0.055) / 1.055) ** 2.4   otherwise
 
 and encoding is its inverse::
@@ -29,12 +29,16 @@ import numpy as np
 
 __all__ = ["srgb_to_linear", "linear_to_srgb", "linear_to_srgb8"]
 
+#: The decoding knee as colour-science computes it: the encoding of 0.0031308
+#: (0.0404499…, a hair below the standard's rounded 0.04045).
+_KNEE = 0.0031308 * 12.92
+
 
 def srgb_to_linear(values) -> np.ndarray:
     """Decode sRGB values (0..1 nominal; larger values follow the power branch) to linear
     light, float64."""
     v = np.asarray(values, dtype=np.float64)
-    return np.where(v <= 0.04045, v / 12.92, np.power(np.abs((v + 0.055) / 1.055), 2.4))
+    return np.where(v <= _KNEE, v / 12.92, np.power(np.abs((v + 0.055) / 1.055), 2.4))
 
 
 def linear_to_srgb(values) -> np.ndarray:

@@ -48,8 +48,21 @@ def describe(src, stats_readouts: int = 4096) -> dict:
     else:
         info.update(seed=meta.get("seed"), sensor=meta.get("sensor"), scene=meta.get("scene"),
                     format_version=src.format_version,
-                    spikesim_version=meta.get("spikesim_version"))
+                    spikesim_version=meta.get("spikesim_version"),
+                    clip=(meta.get("dataset") or {}).get("clip"))
     return info
+
+
+def clip_line(clip: dict) -> str:
+    """One line on the video clip a dataset sequence was made from: video, start time,
+    crop box and the motion measured inside the crop (pixels per readout)."""
+    crop = clip.get("crop")
+    where = (f"crop top {crop[0]} left {crop[1]}, {crop[2]}x{crop[3]} px" if crop
+             else "whole frame")
+    motion = clip.get("motion_px_per_readout") or {}
+    return (f"video {clip.get('video')} from {clip.get('start_s', 0.0):.6g} s, {where}; "
+            f"motion median {motion.get('median', 0.0):.3g}, p95 {motion.get('p95', 0.0):.3g} "
+            f"px/readout ({motion.get('pairs', 0)} frame pairs)")
 
 
 def _text(info: dict) -> str:
@@ -75,6 +88,8 @@ def _text(info: dict) -> str:
     else:
         lines.append(f"  clean twin {'yes' if info['clean_twin'] else 'no'}; seed {info['seed']}; "
                      f"format version {info['format_version']}")
+        if info.get("clip"):
+            lines.append(f"  clip       {clip_line(info['clip'])}")
         for key in ("sensor", "scene"):
             if info.get(key) is not None:
                 lines.append(f"  {key:<10} {json.dumps(info[key], sort_keys=True)}")

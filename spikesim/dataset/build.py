@@ -4,6 +4,9 @@
   the sequence id, so serial, process-pool and Dask runs give identical files.
 * A re-run skips sequences whose files exist and validate (same seed, sensor,
   readouts); stale temporary files of killed workers are removed first.
+* Pool workers size their thread pools to their share of the cores (``_threads.py``).
+* A process pool gets the clips of one video in batches ordered by start time
+  (``batches.py``), so a worker decodes their frames once.
 * A failing sequence is reported with its error and does not stop the others.
   A worker process that dies breaks its pool: the pool is rebuilt for the
   rest, and every task the broken pool still held is run again alone in a
@@ -32,11 +35,14 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from spikesim._numba_cache import compiled_in_this_process
+from spikesim.dataset._threads import worker_thread_env
 from spikesim.dataset._watch import init_worker
+from spikesim.dataset.batches import pool_batches
 from spikesim.dataset.manifest import Manifest
 from spikesim.dataset.plan import plan_tasks
-from spikesim.dataset.worker import run_task, validate_existing
+from spikesim.dataset.worker import run_batch, run_task, validate_existing
 from spikesim.errors import SpikeSimFileError, bad_value
+from spikesim.scenes import _frame_cache as frame_cache
 
 __all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
 
@@ -164,11 +170,16 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
             summary.executor = _run_dask(pending, out, scheduler, dask_local, on_result)
         elif workers == 1 or len(pending) <= 1:
             summary.executor = "serial"
-            for t in pending:
-                on_result(run_task(t, str(out)))
+            frame_cache.clear()  # as a fresh process: nothing decoded by earlier work
+            try:
+                for t in pending:
+                    on_result(run_task(t, str(out)))
+            finally:
+                frame_cache.clear()  # the memory goes back when the build ends
         else:
             summary.executor = f"{workers} local processes"
-            _run_pool(pending, out, workers, on_result)
+            with worker_thread_env(max(1, (os.cpu_count() or 1) // workers)):
+                _run_pool(pending, out, workers, on_result)
     except BaseException:
         # stopped (SIGTERM, Ctrl-C) or a scheduler error: record what was done
         summary.seconds = time.perf_counter() - t0
@@ -227,7 +238,7 @@ def _write_summary(path: Path, summary: BuildSummary) -> None:
 
 def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
     threads = max(1, (os.cpu_count() or 1) // workers)
-    queue = list(pending)
+    queue = pool_batches(pending, workers)  # clips of one video together: frames decoded once
     while queue:
         lost: list[dict] = []
         pool = _new_pool(workers)
@@ -235,17 +246,20 @@ def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
             futures = {}
             while (queue or futures) and not lost:
                 while queue and len(futures) < 2 * workers:
-                    t = queue.pop(0)
-                    futures[pool.submit(run_task, t, str(out), threads)] = t
+                    batch = queue.pop(0)
+                    futures[pool.submit(run_batch, batch, str(out), threads)] = batch
                 done, _ = wait(futures, return_when=FIRST_COMPLETED)
                 for fut in done:
-                    t = futures.pop(fut)
+                    batch = futures.pop(fut)
                     try:
-                        on_result(fut.result())
+                        records = fut.result()
                     except BrokenProcessPool:
-                        lost.append(t)
+                        lost += batch
+                        continue
+                    for rec in records:
+                        on_result(rec)
             # the pool is unusable: what it still held is lost too
-            lost += list(futures.values())
+            lost += [t for batch in futures.values() for t in batch]
             pool.shutdown(wait=True)
         except BaseException:
             _stop_pool(pool)
@@ -369,9 +383,12 @@ def _parallel_calibration(tasks: list[dict], workers: int, dask_local: int | Non
         else:
             pool = _new_pool(workers)  # as the build's: workers die with this process
             submit = pool.submit
+            env = contextlib.ExitStack()  # the workers start on the first submits below
+            env.enter_context(worker_thread_env(threads))
 
             def close():
                 pool.shutdown()
+                env.close()
         try:
             # each worker makes one sequence first (imports, kernels, flow and codec
             # set-up: what a real worker pays on its first task), then all are timed
@@ -436,9 +453,11 @@ def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: in
     elif picks:
         with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
             t0 = time.perf_counter()
+            frame_cache.clear()
             run_task(tasks[picks[0]], tmp + "/warm")  # loads kernels, fills OS caches
             warm_s = time.perf_counter() - t0
             recs = [run_task(tasks[i], tmp) for i in picks]
+            frame_cache.clear()
     ok = [r for r in recs if r["status"] == "done"]
     if ok:
         cal_px = sum(r["px_readouts"] for r in ok)

@@ -530,7 +530,8 @@ def load_manifest(path_or_name: str | Path, variables: dict | None = None) -> Ma
 
     ``${NAME}`` in any string of the manifest is replaced by ``variables[NAME]``
     (``spikesim dataset --set NAME=VALUE``) or else the environment variable
-    ``NAME``; one that is set in neither is an error naming it.
+    ``NAME``; one that is set in neither is an error naming it, and so is a
+    name in ``variables`` the manifest does not use (a typo such as ``DAVS``).
     """
     text_path = str(path_or_name)
     if text_path.startswith(BUILTIN_PREFIX):
@@ -546,8 +547,30 @@ def load_manifest(path_or_name: str | Path, variables: dict | None = None) -> Ma
                         "is not UTF-8: a binary file, or saved in another encoding?)") from None
     except tomllib.TOMLDecodeError as exc:
         raise bad_value("manifest", str(path), f"valid TOML ({exc})") from None
-    data = _substitute(data, dict(variables or {}), text_path)
+    variables = dict(variables or {})
+    _check_variables(variables, _used_variables(data), text_path)
+    data = _substitute(data, variables, text_path)
     return parse_manifest(data, origin=text_path, base=path.parent)
+
+
+def _used_variables(value) -> set[str]:
+    """Every ``NAME`` of a ``${NAME}`` in the strings of a parsed manifest."""
+    if isinstance(value, dict):
+        return set().union(*(_used_variables(v) for v in value.values()))
+    if isinstance(value, list):
+        return set().union(*(_used_variables(v) for v in value))
+    return set(_VAR.findall(value)) if isinstance(value, str) else set()
+
+
+def _check_variables(variables: dict, used: set[str], origin: str) -> None:
+    """A variable given (``--set NAME=VALUE``) that the manifest never uses is a typo."""
+    unknown = sorted(set(variables) - used)
+    if unknown:
+        uses = (f"it uses {', '.join(sorted(used))}" if used
+                else "it uses no ${NAME} variables")
+        raise SpikeSimValueError(
+            f"--set {unknown[0]}: manifest {origin} has no variable {unknown[0]} ({uses}); "
+            "check the spelling or drop it")
 
 
 def _substitute(value, variables: dict, origin: str):

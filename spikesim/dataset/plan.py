@@ -8,7 +8,9 @@ order of execution, or on which machine runs it; it is recorded in the file.
 from __future__ import annotations
 
 import hashlib
+import json
 import re
+import warnings
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -16,7 +18,12 @@ import numpy as np
 from spikesim.dataset.manifest import Manifest, SourceSpec
 from spikesim.sensor import Sensor
 
-__all__ = ["SequenceTask", "plan_tasks", "derive_seed"]
+__all__ = ["SequenceTask", "plan_tasks", "derive_seed", "DuplicateClipWarning"]
+
+
+class DuplicateClipWarning(UserWarning):
+    """Clips of a dataset that show the same part of the same video (same start time and
+    crop box): their spikes differ by noise only."""
 
 
 def derive_seed(global_seed: int, sequence_id: str) -> int:
@@ -124,6 +131,28 @@ def _draw_clip(src: SourceSpec, spec: dict, clip: tuple, clip_s: float,
         spec["crop"] = [top, left, ch, cw]
 
 
+def _warn_duplicate_clips(tasks: list[SequenceTask]) -> None:
+    """One warning, with the count, when video clips repeat an earlier clip exactly
+    (same video, start time, crop box and every other scene setting)."""
+    seen: dict[str, str] = {}
+    repeats = []
+    for t in tasks:
+        if t.scene.get("kind") != "video":
+            continue
+        key = json.dumps({k: v for k, v in t.scene.items() if k != "clip"}, sort_keys=True)
+        if key in seen:
+            repeats.append((t.id, seen[key]))
+        else:
+            seen[key] = t.id
+    if repeats:
+        first, same = repeats[0]
+        warnings.warn(
+            f"{len(repeats)} video clip(s) repeat another clip exactly (same video, start time "
+            f"and crop box; e.g. {first} = {same}): they differ by noise only; draw start_s or "
+            "the crop at random, or ask for fewer clips per video",
+            DuplicateClipWarning, stacklevel=3)
+
+
 def plan_tasks(manifest: Manifest) -> list[SequenceTask]:
     """All sequence tasks of a manifest, in a stable order."""
     tasks = []
@@ -147,6 +176,7 @@ def plan_tasks(manifest: Manifest) -> list[SequenceTask]:
                 sensor=sensor, scene=spec, noise_label=label, compression=manifest.compression,
                 clean_twin=manifest.clean_twin, manifest=manifest.name,
             ))
+    _warn_duplicate_clips(tasks)
     ids = [t.file for t in tasks]
     if len(set(ids)) != len(ids):  # pragma: no cover - ids embed the source index
         raise RuntimeError("duplicate sequence ids in the plan")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run_task", "validate_existing", "build_scene"]
+__all__ = ["run_task", "run_batch", "validate_existing", "build_scene"]
 
 
 class _TimedScene:
@@ -172,3 +172,8 @@ def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
         record.update(status="failed", error=f"{type(exc).__name__}: {exc}")
     record["seconds"]["total"] = time.perf_counter() - t_start
     return record
+
+
+def run_batch(tasks: list[dict], out_dir: str, threads: int | None = None) -> list[dict]:
+    """:func:`run_task` for each task in turn, in this process (one record each)."""
+    return [run_task(t, out_dir, threads) for t in tasks]

@@ -2,7 +2,9 @@
 
 A source knows its frame count and size without decoding pixels, and decodes
 a frame only when :meth:`read` asks for it (``n_decoded`` counts decodes), so a
-long video is never loaded whole.  Frames come back as stored values in RGB
+long video is never loaded whole.  Decoded image files are kept in a small
+per-process cache (:mod:`spikesim.scenes._frame_cache`), so clips of one video
+cut by a dataset decode each frame once.  Frames come back as stored values in RGB
 channel order (uint8, uint16 or float); photometry is applied later
 (:mod:`spikesim.scenes.photometry`).
 
@@ -29,6 +31,7 @@ import cv2
 import numpy as np
 
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, bad_value
+from spikesim.scenes._frame_cache import read_image
 
 __all__ = [
     "IMAGE_EXTENSIONS",
@@ -118,8 +121,14 @@ class ImageFolderSource(FrameSource):
         return img.shape[0], img.shape[1]
 
     def read(self, index: int) -> np.ndarray:
+        """Frame ``index`` (read-only; decoded once per process while it stays in
+        :mod:`spikesim.scenes._frame_cache`, shared by every source of the file)."""
         path = self.files[self._check_index(index)]
-        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        return read_image(str(path), self._decode)
+
+    def _decode(self, name: str) -> np.ndarray:
+        path = Path(name)
+        img = cv2.imread(name, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
         if img is None:
             raise SpikeSimFormatError(f"unreadable frame {path}: OpenCV could not decode it")
         if img.shape[:2] != (self.height, self.width):
@@ -128,7 +137,7 @@ class ImageFolderSource(FrameSource):
                 f"{img.shape[0]}x{img.shape[1]}, expected {self.height}x{self.width}"
             )
         self.n_decoded += 1
-        return _to_rgb(img)
+        return np.ascontiguousarray(_to_rgb(img))
 
 
 class VideoFileSource(FrameSource):

@@ -38,7 +38,14 @@ import numpy as np
 
 from spikesim._validate import check_positive, check_time
 from spikesim.errors import bad_value
-from spikesim.motion import DEFAULT_FLOW, PairMotion, analyse_pair, check_method, interpolate
+from spikesim.motion import (
+    DEFAULT_FLOW,
+    PairMotion,
+    analyse_pair,
+    check_method,
+    interpolate,
+    sq_norm,
+)
 from spikesim.motion import n_intermediate as _n_intermediate
 from spikesim.scenes.base import Scene
 from spikesim.scenes.photometry import check_exposure, decode_frame
@@ -304,7 +311,7 @@ class VideoScene(Scene):
             return 0.0
         if self._inner is None:
             return p.max_disp
-        mags = [np.sqrt((self._inside(f) ** 2).sum(-1)) for f in (p.fwd, p.bwd)]
+        mags = [np.sqrt(sq_norm(self._inside(f))) for f in (p.fwd, p.bwd)]
         ok = [m[self._inside(v)] for m, v in zip(mags, (p.valid0, p.valid1), strict=True)]
         ok = [m for m in ok if m.size]
         disp = max(float(m.max()) for m in ok) if ok else max(float(m.max()) for m in mags)
@@ -318,7 +325,7 @@ class VideoScene(Scene):
             self._motion[i] = np.zeros(n, np.float32)
             return
         fwd = self._inside(p.fwd)[::step, ::step]
-        self._motion[i] = (np.sqrt((fwd**2).sum(-1)) * self._scale).ravel().astype(np.float32)
+        self._motion[i] = (np.sqrt(sq_norm(fwd)) * self._scale).ravel().astype(np.float32)
 
     def motion_stats(self) -> dict:
         """Measured motion inside the output over the frame pairs analysed so far.

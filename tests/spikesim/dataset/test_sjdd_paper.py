@@ -81,3 +81,19 @@ def test_manifests_command_lists_and_shows(capsys):
     assert main(["manifests", "show", "nope"]) == 1
     assert "builtin:" in capsys.readouterr().err
     assert main(["manifests", "show"]) == 1
+
+
+def test_unknown_set_name_is_an_error_listing_the_variables(roots, monkeypatch, capsys):
+    reds, davis = roots
+    monkeypatch.setenv("DAVIS", str(davis))  # a typo must not pass because DAVIS is set anyway
+    with pytest.raises(SpikeSimValueError,
+                       match=r"--set DAVS: manifest builtin:sjdd-paper has no variable DAVS "
+                             r"\(it uses DAVIS, REDS\)"):
+        load_manifest("builtin:sjdd-paper", {"REDS": str(reds), "DAVS": str(davis)})
+    with pytest.raises(SpikeSimValueError, match=r"has no variable X \(it uses no \$\{NAME\}"):
+        load_manifest("builtin:demo", {"X": "1"})
+    rc = main(["dataset", "builtin:sjdd-paper", "--set", f"REDS={reds}", "--set",
+               f"DAVS={davis}", "--dry-run"])
+    err = capsys.readouterr().err
+    assert rc != 0 and "DAVS" in err and "it uses DAVIS, REDS" in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1

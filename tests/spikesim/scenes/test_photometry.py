@@ -61,11 +61,22 @@ def test_bad_frames():
         decode_frame(np.zeros((2, 2, 2), np.uint8))
 
 
-def test_the_one_srgb_curve_equals_colour_science_both_ways():
-    v = np.linspace(0.0, 1.5, 3001)
-    np.testing.assert_array_equal(srgb_to_linear(v), colour.models.eotf_sRGB(v))
-    x = np.linspace(0.0, 1.0, 3001)
-    np.testing.assert_array_equal(linear_to_srgb(x), colour.models.eotf_inverse_sRGB(x))
-    np.testing.assert_allclose(linear_to_srgb([-1.0, 2.0]), [0.0, 1.0], rtol=0, atol=1e-15)  # clip
+def test_the_one_srgb_curve_is_bit_equal_to_colour_science():
+    """spikesim computes the sRGB curves itself (importing colour-science takes seconds in
+    every worker process); the bits must be colour-science's, codes and floats alike
+    (the encoding clips to [0, 1] first)."""
+    rng = np.random.default_rng(7)
+    values = np.concatenate([
+        np.arange(256) / 255.0, np.arange(65536) / 65535.0,
+        rng.random(200_000), rng.random(20_000) * 0.1, rng.normal(0, 2, 20_000),
+        np.linspace(0.04, 0.041, 10_001), np.linspace(0.003, 0.0032, 10_001),
+        rng.random(200_000).astype(np.float32), [0.0, -0.0, 1.0, 0.0031308, 0.04045]])
+    for ours, theirs, x in ((srgb_to_linear, colour.models.eotf_sRGB, values),
+                            (linear_to_srgb, colour.models.eotf_inverse_sRGB,
+                             np.clip(values, 0.0, 1.0))):
+        a, b = np.asarray(ours(x)), np.asarray(theirs(x))
+        assert a.dtype == b.dtype == np.float64
+        np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64))
+    np.testing.assert_allclose(linear_to_srgb([-1.0, 2.0]), [0.0, 1.0], rtol=0, atol=1e-15)
     codes = linear_to_srgb8(srgb_to_linear(np.arange(256) / 255.0))
     np.testing.assert_array_equal(codes, np.arange(256))  # every 8-bit code round-trips
