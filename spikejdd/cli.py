@@ -19,8 +19,7 @@ import os
 import shlex
 import sys
 
-from spikesim._validate import check_cli_numbers
-from spikesim.cli_guard import OneLineParser, debug_requested, run_guarded
+from spikesim.cli_guard import OneLineParser, check_cli_numbers, debug_requested, run_guarded
 from spikesim.errors import bad_value
 
 __all__ = ["main", "build_parser"]

@@ -12,9 +12,8 @@ import argparse
 import importlib
 import sys
 
-from spikesim._validate import check_cli_numbers
 from spikesim._version import __version__
-from spikesim.cli_guard import OneLineParser, debug_requested, run_guarded
+from spikesim.cli_guard import OneLineParser, check_cli_numbers, debug_requested, run_guarded
 
 #: Modules under spikesim.commands, in the order their commands are listed.
 COMMAND_MODULES = (

@@ -32,10 +32,11 @@ import signal
 import sys
 from collections.abc import Callable
 
+from spikesim._validate import check_int, check_real, is_int, is_real
 from spikesim.errors import SpikeSimError
 
-__all__ = ["OneLineParser", "Terminated", "debug_requested", "install_signal_handlers",
-           "run_guarded"]
+__all__ = ["MAX_READOUTS", "check_cli_numbers", "OneLineParser", "Terminated", "debug_requested",
+           "install_signal_handlers", "run_guarded"]
 
 EXIT_ERROR = 1
 EXIT_BUG = 70
@@ -148,3 +149,45 @@ def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False)
 def _say(label: str, text: str) -> None:
     with contextlib.suppress(OSError, ValueError):
         print(f"{label}: {text}", file=sys.stderr)
+
+
+#: Upper bound of any readout count given on a command line (2**40: ~1.7 years at 20 kHz).
+MAX_READOUTS = 2**40
+
+#: Command-line numbers checked by name, whatever the command: (low, high, unit).
+_CLI_INTS = {
+    "readouts": (1, MAX_READOUTS, "readouts"), "max_readouts": (1, MAX_READOUTS, "readouts"),
+    "stats_readouts": (1, MAX_READOUTS, "readouts"), "window": (1, MAX_READOUTS, "readouts"),
+    "context": (1, MAX_READOUTS, "readouts"), "frames": (1, 100_000, "frames"),
+    "step": (1, MAX_READOUTS, "readouts"), "limit": (1, None, "sequences"),
+    "workers": (0, 1024, "processes"), "repeats": (1, 10_000, "timed calls"),
+    "per_sequence": (1, 1_000_000, "frames"), "frames_per_scene": (1, 1_000_000, "frames"),
+    "centers": (1, 1_000_000, "readouts"), "seed": (0, 2**64 - 1, ""),
+    "steps": (1, None, "steps"), "batch_size": (1, 1 << 20, "samples"),
+    "crop": (1, 1 << 16, "pixels"), "threads": (1, 4096, "threads"),
+    "eval_every": (1, None, "steps"), "eval_frames": (1, None, "frames"),
+    "checkpoint_every": (1, None, "steps"), "lr_step": (1, None, "steps"),
+    "head_columns": (0, 1 << 16, "columns"), "height": (1, 1 << 16, "pixels"),
+    "width": (1, 1 << 16, "pixels"), "size": (1, 1 << 16, "pixels"),
+}
+_CLI_REALS = {
+    "fps": (0.0, None, "frames per second"), "rate": (0.0, None, "spikes per readout"),
+    "clock_hz": (0.0, None, "Hz"), "electrons": (0.0, None, "electrons"),
+    "lr": (0.0, None, ""), "time_limit_min": (0.0, None, "minutes"),
+}
+
+
+def check_cli_numbers(args) -> None:
+    """Check the numbers of a parsed command line by their names (``--readouts``, ...).
+
+    One table for every command, so a new option named like an old one is
+    checked the same way; values left unset (None) are skipped.
+    """
+    for dest, (low, high, unit) in _CLI_INTS.items():
+        value = getattr(args, dest, None)
+        if is_int(value):
+            check_int("--" + dest.replace("_", "-"), value, low, high, unit)
+    for dest, (low, high, unit) in _CLI_REALS.items():
+        value = getattr(args, dest, None)
+        if is_real(value):
+            check_real("--" + dest.replace("_", "-"), value, low, high, low_open=True, unit=unit)

@@ -25,9 +25,9 @@ __all__ = ["build_demo", "demo_report", "preview_report"]
 def _demo_manifest(size: int | None):
     import tomllib
 
-    from spikesim.dataset.manifest import _BUILTIN_DIR, parse_manifest
+    from spikesim.dataset.manifest import builtin_manifest_path, parse_manifest
 
-    data = tomllib.loads((_BUILTIN_DIR / "demo.toml").read_text())
+    data = tomllib.loads(builtin_manifest_path("demo").read_text())
     if size is not None:
         if isinstance(size, bool) or not isinstance(size, int) or size < 16:
             raise bad_value("size", size, "an integer >= 16 pixels")

@@ -17,7 +17,7 @@ BLOCK_READOUTS = 256
 
 
 def register(subparsers) -> None:
-    from spikesim.io._compression import DEFAULT_COMPRESSION
+    from spikesim.io import DEFAULT_COMPRESSION
 
     p = subparsers.add_parser(
         "convert", help="convert between spikesim HDF5 and PKU .dat",
@@ -61,7 +61,7 @@ def convert(src, dst, start: int = 0, length: int | None = None, crop=None,
 
     from spikesim._validate import check_crop, check_window
     from spikesim.cfa import cfa_after_crop
-    from spikesim.io._compression import DEFAULT_COMPRESSION
+    from spikesim.io import DEFAULT_COMPRESSION
     from spikesim.io.dat import DatWriter
     from spikesim.io.h5 import H5Writer
     from spikesim.io.source import is_dat

@@ -4,7 +4,7 @@ A pool hands each task to whichever worker is free, so consecutive clips of a
 video would alternate between workers and every worker would decode nearly
 every frame of every video.  Video clips are therefore sent in batches: the
 clips of one video, ordered by start time, cut into runs of a few clips, so a
-worker decodes a run's frames once (:mod:`spikesim.scenes._frame_cache`) and
+worker decodes a run's frames once (:mod:`spikesim.scenes.frame_cache`) and
 reuses them for the neighbouring clips.  Other tasks stay one per batch.  The
 batches only change which process makes a sequence and when; every file is
 the same (a sequence's content depends on its task alone).

@@ -42,7 +42,7 @@ from spikesim.dataset.manifest import Manifest
 from spikesim.dataset.plan import plan_tasks
 from spikesim.dataset.worker import run_batch, run_task, validate_existing
 from spikesim.errors import SpikeSimFileError, bad_value
-from spikesim.scenes import _frame_cache as frame_cache
+from spikesim.scenes import frame_cache
 
 __all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
 

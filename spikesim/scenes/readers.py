@@ -3,7 +3,7 @@
 A source knows its frame count and size without decoding pixels, and decodes
 a frame only when :meth:`read` asks for it (``n_decoded`` counts decodes), so a
 long video is never loaded whole.  Decoded image files are kept in a small
-per-process cache (:mod:`spikesim.scenes._frame_cache`), so clips of one video
+per-process cache (:mod:`spikesim.scenes.frame_cache`), so clips of one video
 cut by a dataset decode each frame once.  Frames come back as stored values in RGB
 channel order (uint8, uint16 or float); photometry is applied later
 (:mod:`spikesim.scenes.photometry`).
@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, bad_value
-from spikesim.scenes._frame_cache import read_image
+from spikesim.scenes.frame_cache import read_image
 
 __all__ = [
     "IMAGE_EXTENSIONS",
@@ -122,7 +122,7 @@ class ImageFolderSource(FrameSource):
 
     def read(self, index: int) -> np.ndarray:
         """Frame ``index`` (read-only; decoded once per process while it stays in
-        :mod:`spikesim.scenes._frame_cache`, shared by every source of the file)."""
+        :mod:`spikesim.scenes.frame_cache`, shared by every source of the file)."""
         path = self.files[self._check_index(index)]
         return read_image(str(path), self._decode)
 

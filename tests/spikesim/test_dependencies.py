@@ -89,3 +89,49 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 def test_no_import_circle_between_modules():
     assert _cycles(_import_graph()) == []
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def _private_imports(path: Path, module: str):
+    """``(line, what)`` for each private name ``path`` imports from outside its own package:
+    a private module (``_name`` anywhere in the dotted path) or a private attribute belongs
+    to the package that holds it, and only that package's modules may import it."""
+    own = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+
+    def inside(owner: str) -> bool:
+        return own == owner or own.startswith(owner + ".")
+
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            targets = [(node.module, None)] + [(node.module, a.name) for a in node.names]
+        elif isinstance(node, ast.Import):
+            targets = [(a.name, None) for a in node.names]
+        else:
+            continue
+        for mod, name in targets:
+            parts = mod.split(".")
+            if parts[0] not in ("spikesim", "spikejdd"):
+                continue
+            if name is None:
+                private = [i for i, p in enumerate(parts) if p.startswith("_")]
+                if private and not inside(".".join(parts[:private[0]])):
+                    yield node.lineno, mod
+            elif name.startswith("_") and not name.startswith("__"):
+                is_pkg = (ROOT / mod.replace(".", "/")).is_dir()
+                if not inside(mod if is_pkg else mod.rsplit(".", 1)[0]):
+                    yield node.lineno, f"{mod}.{name}"
+
+
+def test_no_private_name_is_imported_across_packages():
+    found = [f"{p.relative_to(ROOT)}:{line} imports {what}"
+             for pkg in ("spikesim", "spikejdd") for p in sorted((ROOT / pkg).rglob("*.py"))
+             for line, what in _private_imports(p, _module_name(p))]
+    assert not found, "\n".join(found)
+
+
+def test_the_private_check_bites(tmp_path):
+    f = tmp_path / "cli.py"
+    f.write_text("from spikesim._validate import check_int\nfrom spikesim.io import _x\n"
+                 "from spikesim.io._compression import C\n")
+    assert [w for _, w in _private_imports(f, "spikejdd.cli")] == [
+        "spikesim._validate", "spikesim.io._x", "spikesim.io._compression"]
+    assert list(_private_imports(f, "spikesim.io.dat")) == []

@@ -13,7 +13,7 @@ import pytest
 from spikesim.dataset import build_dataset, parse_manifest, plan_tasks
 from spikesim.dataset._threads import THREAD_VARIABLES, worker_thread_env
 from spikesim.dataset.batches import MAX_BATCH, pool_batches
-from spikesim.scenes import _frame_cache
+from spikesim.scenes import frame_cache
 from spikesim.scenes.readers import open_source
 from tests.support.dataset_helpers import assert_same_files, reds_root, write_frames
 
@@ -59,7 +59,7 @@ def test_batches_hold_one_video_each_in_start_order(reds):
 
 def test_decoded_frames_are_shared_and_refreshed(tmp_path):
     folder = write_frames(tmp_path / "v", 3, size=(24, 32))
-    _frame_cache.clear()
+    frame_cache.clear()
     a, b = open_source(folder), open_source(folder)
     fa = a.read(1)
     fb = b.read(1)
@@ -72,18 +72,18 @@ def test_decoded_frames_are_shared_and_refreshed(tmp_path):
     os.utime(a.files[1], ns=(1, 1))
     assert int(a.read(1).max()) == 0 and a.n_decoded == 2
     # bounded: the oldest frames go first
-    budget = _frame_cache.CACHE_BYTES
+    budget = frame_cache.CACHE_BYTES
     try:
-        _frame_cache.CACHE_BYTES = 2 * fa.nbytes
-        _frame_cache.clear()
+        frame_cache.CACHE_BYTES = 2 * fa.nbytes
+        frame_cache.clear()
         for i in range(3):
             a.read(i)
-        assert _frame_cache.cached_bytes() == 2 * fa.nbytes
+        assert frame_cache.cached_bytes() == 2 * fa.nbytes
         a.read(0)
         assert a.n_decoded == 2 + 3 + 1  # frame 0 had been dropped
     finally:
-        _frame_cache.CACHE_BYTES = budget
-        _frame_cache.clear()
+        frame_cache.CACHE_BYTES = budget
+        frame_cache.clear()
 
 
 def test_worker_thread_env_sets_what_the_user_did_not(monkeypatch):
