@@ -40,13 +40,13 @@ from spikesim.dataset._watch import init_worker
 from spikesim.dataset.batches import pool_batches
 from spikesim.dataset.manifest import Manifest
 from spikesim.dataset.plan import plan_tasks
+from spikesim.dataset.record import STAGES, TaskRecord
 from spikesim.dataset.worker import run_batch, run_task, validate_existing
 from spikesim.errors import SpikeSimFileError, bad_value
 from spikesim.scenes import frame_cache
 
 __all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
 
-_STAGES = ("scene", "flow", "warp", "kernel", "write", "total")
 #: Seconds to wait for a Dask scheduler to answer.
 SCHEDULER_TIMEOUT_S = 10
 
@@ -70,7 +70,7 @@ class BuildSummary:
 
     def seconds_by_stage(self) -> dict:
         return {s: sum(r["seconds"].get(s, 0.0) for r in self.records if r["status"] == "done")
-                for s in _STAGES}
+                for s in STAGES}
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -143,9 +143,9 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     for t in tasks:
         if validate_existing(out / t["file"], t):
             summary.skipped += 1
-            summary.records.append({"id": t["id"], "file": t["file"], "split": t["split"],
-                                    "status": "skipped", "bytes": (out / t["file"]).stat().st_size,
-                                    "error": None, "px_readouts": 0, "seconds": {}})
+            summary.records.append(TaskRecord.of(
+                t, status="skipped", bytes=(out / t["file"]).stat().st_size,
+                seconds={}).to_dict())
         else:
             pending.append(t)
     t0 = time.perf_counter()
@@ -303,13 +303,10 @@ def _lost(task: dict, exc: BaseException | None, out: Path | None = None) -> dic
         path = out / task["file"]
         with open_h5(path) as seq:
             n, h, w = seq.shape
-        return {"id": task["id"], "file": task["file"], "split": task["split"],
-                "status": "done", "bytes": path.stat().st_size, "px_readouts": n * h * w,
-                "error": None, "seconds": dict.fromkeys(_STAGES, 0.0)}
-    return {"id": task["id"], "file": task["file"], "split": task["split"], "status": "failed",
-            "bytes": 0, "px_readouts": 0,
-            "error": f"{type(exc).__name__}: {exc or 'a worker process died'}",
-            "seconds": dict.fromkeys(_STAGES, 0.0)}
+        return TaskRecord.of(task, bytes=path.stat().st_size,
+                             px_readouts=n * h * w).to_dict()
+    return TaskRecord.of(task, status="failed",
+                         error=f"{type(exc).__name__}: {exc or 'a worker process died'}").to_dict()
 
 
 def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) -> str:

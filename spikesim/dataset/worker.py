@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from spikesim.dataset.record import TaskRecord
+
 __all__ = ["run_task", "run_batch", "validate_existing", "build_scene"]
 
 
@@ -129,10 +131,7 @@ def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
         cv2.setNumThreads(max(1, int(threads)))  # decoding, flow and warping: no oversubscription
     path = Path(out_dir) / task["file"]
     t_start = time.perf_counter()
-    record = {"id": task["id"], "file": task["file"], "split": task["split"], "status": "done",
-              "bytes": 0, "error": None, "px_readouts": 0,
-              "seconds": {"scene": 0.0, "flow": 0.0, "warp": 0.0, "kernel": 0.0, "write": 0.0,
-                          "total": 0.0}}
+    record = TaskRecord.of(task)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         scene = _TimedScene(build_scene(task["scene"], task["seed"]))
@@ -156,22 +155,22 @@ def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
             clip = clip_record(task["scene"], scene._scene, sensor.clock_hz)
             if clip is not None:  # measured while simulating; written with the attributes
                 writer.meta["dataset"] = {**meta["dataset"], "clip": clip}
-                record["clip"] = clip
+                record.clip = clip
             t_close = time.perf_counter()
         write_s += time.perf_counter() - t_close
         produce_s = time.perf_counter() - produce_start - write_s
         stats = getattr(scene._scene, "stats", None) or {}
         flow_s = float(stats.get("flow_s", 0.0))
         warp_s = float(stats.get("interp_s", 0.0))
-        record["seconds"].update(scene=max(scene.seconds - flow_s - warp_s, 0.0), flow=flow_s,
+        record.seconds.update(scene=max(scene.seconds - flow_s - warp_s, 0.0), flow=flow_s,
                                  warp=warp_s, kernel=max(produce_s - scene.seconds, 0.0),
                                  write=write_s)
-        record["bytes"] = path.stat().st_size
-        record["px_readouts"] = int(np.prod(sensor.shape)) * task["n_readouts"]
+        record.bytes = path.stat().st_size
+        record.px_readouts = int(np.prod(sensor.shape)) * task["n_readouts"]
     except Exception as exc:  # noqa: BLE001 - reported per sequence, others go on
-        record.update(status="failed", error=f"{type(exc).__name__}: {exc}")
-    record["seconds"]["total"] = time.perf_counter() - t_start
-    return record
+        record.status, record.error = "failed", f"{type(exc).__name__}: {exc}"
+    record.seconds["total"] = time.perf_counter() - t_start
+    return record.to_dict()
 
 
 def run_batch(tasks: list[dict], out_dir: str, threads: int | None = None) -> list[dict]:
