@@ -312,11 +312,11 @@ def _names_from_file(path: str, root: Path, name) -> list:
 def _video_info(kind: str, root: Path, seq: str, fps, path: str) -> VideoInfo:
     """Frame count, size and rate of one video (headers only, nothing decoded)."""
     from spikesim.errors import SpikeSimError
-    from spikesim.scenes.readers import VideoFileSource, open_source
+    from spikesim.scenes.readers import VideoFileSource, open_frames
     from spikesim.scenes.video import DEFAULT_FOLDER_FPS
 
     try:
-        src = open_source(root, layout={"reds": "reds", "davis": "davis"}.get(kind, "auto"),
+        src = open_frames(root, layout={"reds": "reds", "davis": "davis"}.get(kind, "auto"),
                           sequence=None if kind == "video" else seq)
     except SpikeSimError as exc:
         raise SpikeSimValueError(f"{path}: video {seq!r}: {exc}") from None

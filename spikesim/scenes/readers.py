@@ -40,7 +40,7 @@ __all__ = [
     "ImageFolderSource",
     "VideoFileSource",
     "SceneSource",
-    "open_source",
+    "open_frames",
 ]
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".exr", ".webp")
@@ -211,7 +211,7 @@ def _images_in(folder: Path, pattern: str | None = None) -> list[Path]:
     return [folder / n for n in sorted(names, key=_natural_key)]
 
 
-def open_source(path: str | os.PathLike, layout: str = "auto",
+def open_frames(path: str | os.PathLike, layout: str = "auto",
                 sequence: str | None = None) -> FrameSource:
     """Open ``path`` as a lazy frame source according to ``layout`` (see module doc)."""
     if layout not in LAYOUTS:

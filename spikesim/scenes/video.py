@@ -49,7 +49,7 @@ from spikesim.motion import (
 from spikesim.motion import n_intermediate as _n_intermediate
 from spikesim.scenes.base import Scene
 from spikesim.scenes.photometry import check_exposure, decode_frame
-from spikesim.scenes.readers import FrameSource, SceneSource, VideoFileSource, open_source
+from spikesim.scenes.readers import FrameSource, SceneSource, VideoFileSource, open_frames
 
 __all__ = ["VideoScene", "video", "as_video", "DEFAULT_MAX_PX", "DEFAULT_FOLDER_FPS",
            "DEFAULT_MARGIN"]
@@ -495,7 +495,7 @@ def video(
     """
     if fps is not None:
         check_positive("fps", fps)
-    return VideoScene(open_source(path, layout=layout, sequence=sequence), fps, **options)
+    return VideoScene(open_frames(path, layout=layout, sequence=sequence), fps, **options)
 
 
 def as_video(scene: Scene, fps: float, n_frames: int, *, srgb8: bool = False,

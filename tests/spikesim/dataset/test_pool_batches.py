@@ -14,7 +14,7 @@ from spikesim.dataset import build_dataset, parse_manifest, plan_tasks
 from spikesim.dataset._threads import THREAD_VARIABLES, worker_thread_env
 from spikesim.dataset.batches import MAX_BATCH, pool_batches
 from spikesim.scenes import frame_cache
-from spikesim.scenes.readers import open_source
+from spikesim.scenes.readers import open_frames
 from tests.support.dataset_helpers import assert_same_files, reds_root, write_frames
 
 
@@ -60,7 +60,7 @@ def test_batches_hold_one_video_each_in_start_order(reds):
 def test_decoded_frames_are_shared_and_refreshed(tmp_path):
     folder = write_frames(tmp_path / "v", 3, size=(24, 32))
     frame_cache.clear()
-    a, b = open_source(folder), open_source(folder)
+    a, b = open_frames(folder), open_frames(folder)
     fa = a.read(1)
     fb = b.read(1)
     assert fa is fb and (a.n_decoded, b.n_decoded) == (1, 0)  # decoded once for both
