@@ -1,4 +1,5 @@
-"""Shared helpers for the I/O tests: small random streams shaped like ``SpikeStream``."""
+"""Fixtures shared by the spikesim tests (I/O and commands): small random streams shaped like
+``SpikeStream``."""
 
 from __future__ import annotations
 
