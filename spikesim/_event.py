@@ -25,8 +25,9 @@ drops a whole threshold (the count at the readout's end is drawn exactly,
 ``Poisson`` of the operational time left).  Comparator jitter: the next
 threshold is ``θ(1 + ε)``, ``ε = σ_t·z`` clipped to ±½ (the per-readout model
 moves the charge by −ε), ``E·ε`` electrons more.  So the work is one Gamma
-variate (Marsaglia–Tsang) and one normal per spike, a second Gamma (modulo
-with ε > 0) or a Poisson count only where needed.
+variate (Marsaglia–Tsang, or a product of uniforms for small shapes) and
+one normal per spike, a second, small Gamma (modulo with ε > 0) or a Poisson
+count only where needed.
 
 Every draw is keyed by (seed, source, pixel, cycle): source
 ``STREAM_WAIT`` for the Gamma variate of cycle ``c``, ``STREAM_RESIDUAL``
@@ -46,7 +47,7 @@ import numpy as np
 from numba import njit
 
 from spikesim._poisson import LAMBDA_MAX, poisson
-from spikesim.rng import log_positive, normal, normal_exact, pixel_bits, readout_key, uniform
+from spikesim.rng import log_positive, normal, pixel_bits, readout_key, uniform
 
 BLOCK = 64
 #: Reset codes, the values of ``spikesim._kernels.RESET_*`` (tested equal).
@@ -62,23 +63,36 @@ _U1 = np.uint64(1)
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
 
+#: Shapes up to this use the product of uniforms (cheaper than a rejection).
+SMALL_SHAPE = 8
+
+
 @njit(**_opts)
 def gamma_integer(m, bits):
-    """Gamma(m, 1) deviate for a shape ``m`` ≥ 1 from 64 random bits.
+    """Gamma(m, 1) deviate for an integer-valued shape ``m`` ≥ 1 from 64 random bits.
 
+    ``m`` ≤ :data:`SMALL_SHAPE`: ``−log Π_j u_j`` (a sum of ``m`` unit
+    exponentials, exact), ``u_j = uniform(pixel_bits(bits, j))``.  Larger:
     Marsaglia & Tsang, "A simple method for generating gamma variables", ACM
-    TOMS 26(3), 2000: ``d = m − ⅓``, ``c = 1/√(9d)``, candidate ``d·(1 + c·x)³``
-    for a standard normal ``x``, accepted by the squeeze
-    ``u < 1 − 0.0331·x⁴`` or ``log u < ½x² + d·(1 − v + log v)``.  Attempt ``j``
-    uses ``normal_exact(pixel_bits(bits, 2j))`` and
-    ``uniform(pixel_bits(bits, 2j + 1))``; logarithms are
-    :func:`spikesim.rng.log_positive` (absolute error < 1e-13).
+    TOMS 26(3), 2000: ``d = m − ⅓``, ``c = 1/√(9d)``, candidate
+    ``d·(1 + c·x)³`` for a standard normal ``x``, accepted by the squeeze
+    ``u < 1 − 0.0331·x⁴`` or ``log u < ½x² + d·(1 − v + log v)``; attempt
+    ``j`` uses ``normal(pixel_bits(bits, 2j))`` and
+    ``uniform(pixel_bits(bits, 2j + 1))``.  ``normal`` is the simulator's
+    deviate (within 1.4e-4 of Φ⁻¹(u), :func:`spikesim.rng.normal`), which
+    moves a variate by at most ``3c·1.4e-4`` relative (1.3e-5 at m = 1000);
+    logarithms are :func:`spikesim.rng.log_positive` (absolute error < 1e-13).
     """
+    if m <= SMALL_SHAPE:
+        prod = 1.0
+        for j in range(np.int64(m)):
+            prod *= uniform(pixel_bits(bits, np.uint64(j)))
+        return -log_positive(prod)
     d = m - 1.0 / 3.0
     c = 1.0 / np.sqrt(9.0 * d)
     j = np.uint64(0)
     while True:
-        x = normal_exact(pixel_bits(bits, j))
+        x = normal(pixel_bits(bits, j))
         u = uniform(pixel_bits(bits, j + _U1))
         j += np.uint64(2)
         t = 1.0 + c * x

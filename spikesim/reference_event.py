@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from spikesim import rng
-from spikesim.reference import _log_positive_np, _normal_exact_np, normal_np
+from spikesim.reference import _log_positive_np, normal_np
 
 __all__ = ["EventReference"]
 
@@ -60,12 +60,18 @@ def _log(y: float) -> float:
 
 
 def gamma_ref(m: float, bits: int) -> float:
-    """Gamma(m, 1), Marsaglia–Tsang, attempt j from ``_sub_bits(bits, 2j)``, ``2j+1``."""
+    """Gamma(m, 1): ``−log Π u_j`` for m ≤ 8 (``u_j`` from ``_sub_bits(bits, j)``),
+    else Marsaglia–Tsang with attempt j from ``_sub_bits(bits, 2j)``, ``2j+1``."""
+    if m <= 8:
+        prod = 1.0
+        for j in range(int(m)):
+            prod *= _uniform(_sub_bits(bits, j))
+        return -_log(prod)
     d = m - 1.0 / 3.0
     c = 1.0 / math.sqrt(9.0 * d)
     j = 0
     while True:
-        x = float(_normal_exact_np(np.array([_sub_bits(bits, j)], np.uint64))[0])
+        x = float(normal_np(np.array([_sub_bits(bits, j)], np.uint64))[0])
         u = _uniform(_sub_bits(bits, j + 1))
         j += 2
         t = 1.0 + c * x
