@@ -12,8 +12,10 @@ negative light clipped at 0.  ``σ_p = 0`` is the Gaussian (GN) case,
 
 *Physical mode* — :class:`PhysicalNoise`: per-pixel fixed patterns
 (threshold mismatch, photo-response non-uniformity, dark current with spread,
-hot pixels) and per-readout temporal noise (Poisson photon shot noise on the
-collected electrons, comparator threshold noise per firing cycle).  Default
+hot pixels) and temporal noise (Poisson photon shot noise on the collected
+electrons, drawn per spike by ``spikesim._event``; comparator threshold noise
+per firing cycle; optional accumulating charge noise), plus an optional charge
+loss at reset.  Default
 magnitudes follow published circuit-level figures for spike-camera pixels
 (SCSim, Zhao et al. 2024): threshold FPN 4.5 %, PRNU 5.8 %, temporal threshold
 noise 0.6 % per comparison, dark current 0.5 % of full scale with 39 %

@@ -107,3 +107,9 @@ def test_charge_loss_is_off_by_default_validated_and_serialised():
     assert ss.noise.noise_from_dict(d).reset_charge_loss == 0.002
     old = {k: v for k, v in d.items() if k != "reset_charge_loss"}  # files from before
     assert ss.noise.noise_from_dict(old).reset_charge_loss == 0.0
+
+
+def test_ideal_reference_rejects_charge_loss():
+    sensor = ss.Sensor(height=2, width=8, cfa=None, noise=_only_loss(0.1))
+    with pytest.raises(SpikeSimValueError, match="reset_charge_loss"):
+        ss.ideal_spike_times(ss.scenes.Static(np.full((2, 8), 0.5, np.float32)), sensor, 10)
