@@ -27,6 +27,13 @@ Model (DESIGN.md §2; Dong et al., AAAI 2024, eq. 1):
   paper mode ``Ĩ = max(Ī + σ(Ī)·z/255, 0)``, ``σ² = σ_g² + σ_p²·255·Ī``;
   Poisson shot noise on ``q·E`` electrons (E electrons per threshold);
   threshold jitter ``θ(1 + σ_t z)`` drawn at every firing for the next cycle.
+* Event-driven shot noise (``spikesim._event``, physical mode without charge
+  noise): per pixel and firing cycle the readout of the next threshold
+  crossing is drawn as an Erlang waiting time in operational time
+  ``Λ = Σ E·q_n`` (draws keyed by (stream, pixel, cycle)); per readout the
+  block only subtracts ``E·q_n`` from each lane's wait, so the work is per
+  spike.  Its state is the float64 ``aux`` array, not the fixed point.
+* Charge loss at reset: the readout after a firing collects ``(1 − f)·q_n``.
 
 Work is split in blocks of 64 pixels of one row (8 packed bytes) run in
 parallel; time is the inner loop of each block so its state stays in
@@ -41,11 +48,11 @@ Charges too large for the fixed point saturate (:data:`Q_WHOLE_MAX`,
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange
 
+from spikesim._event import AFTER_RESET, event_step, init_event_row
+from spikesim._poisson import _shot_noise_block
 from spikesim._simd import (
     carry_add64,
     carry_add64_zero,
@@ -56,13 +63,10 @@ from spikesim._simd import (
 )
 from spikesim.rng import (
     NORMAL_ABS_MAX,
-    exp_nonpositive,
-    log_positive,
     normals_into,
     pixel_bits,
     pixel_keys_into,
     readout_key,
-    uniform,
 )
 
 BLOCK = 64  # pixels per block: one uint64 spike mask = 8 packed bytes
@@ -77,9 +81,6 @@ Q_WHOLE_MAX = 2.0**53
 #: here, so ``whole + charge + carry`` never overflows int64 (2⁶² + 2⁵³ + 1 < 2⁶³).
 #: A pixel holding it fires at every readout for 2⁶² readouts after the light stops.
 WHOLE_MAX = 2**62
-#: Largest mean electron count given to the shot-noise sampler; a pixel there
-#: holds ≥ 2⁶²/E thresholds per readout and fires at every readout anyway.
-LAMBDA_MAX = 2.0**62
 _FRAC_MAX = TWO64 - 2048.0  # the largest float64 below 2⁶⁴
 
 RESET_MODULO = 0
@@ -90,10 +91,6 @@ RUN_SEGMENT = 0  # readouts [start, stop) inside one segment (or a hold)
 RUN_PIECES = 1  # one readout whose period contains key times
 
 _U1 = np.uint64(1)
-_POISSON_INVERSION_MAX = 10.0
-_POISSON_INVERSION_CAP = 200  # the inversion search stops here (P(k > 200 | λ < 10) ≈ 0)
-_INV_INT = np.array([0.0] + [1.0 / k for k in range(1, _POISSON_INVERSION_CAP + 1)])  # 1/k
-_UNDECIDED = -1.0  # an attempt the vector pass cannot judge (k beyond the log k! table)
 
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
@@ -107,223 +104,6 @@ def _to_fixed(q):
     # q − ⌊q⌋ < 1 exactly for q ≥ 0 (so ≤ _FRAC_MAX); a tiny negative charge
     # (charge noise) may round to 1.0 and is kept just below it
     return np.int64(w), np.uint64(min((qc - w) * TWO64, _FRAC_MAX))
-
-
-@njit(**_opts)
-def _log_factorial_table(n):
-    """``log k!`` for k = 0..n−1, by the same ``math.lgamma`` the samplers use."""
-    out = np.empty(n, np.float64)
-    for k in range(n):
-        out[k] = math.lgamma(k + 1.0)
-    return out
-
-
-_LOG_FACTORIAL = _log_factorial_table(4096)  # k ≤ λ + a few √λ for λ up to ~4000
-
-
-@njit(inline="always", **_opts)
-def _log_factorial(k):
-    """``log k!`` of an integer-valued float k ≥ 0: the table's value (identical
-    to ``math.lgamma(k + 1)``, which it stores) or ``math.lgamma`` beyond it."""
-    if k < _LOG_FACTORIAL.shape[0]:
-        return _LOG_FACTORIAL[np.int64(k)]
-    return math.lgamma(k + 1.0)
-
-
-@njit(**_opts)
-def poisson(lam, bits):
-    """Poisson deviate with mean ``lam`` from 64 random bits (exact samplers).
-
-    ``lam < 10``: inversion of the CDF with one uniform (sequential search,
-    ``p_k = p_{k−1}·(λ·(1/k))`` from ``p_0 = e**−λ``).  Otherwise the
-    transformed rejection with squeeze of W. Hörmann, "The transformed
-    rejection method for generating Poisson random variables", Insurance:
-    Mathematics and Economics 12 (1993); attempt j uses two uniforms hashed
-    from ``bits`` and j.  Logarithms are :func:`spikesim.rng.log_positive`
-    (absolute error < 1e-13, vectorisable, so the block sampler can run the
-    whole first attempt branch-free) and ``log k!`` a table of ``lgamma``.
-    """
-    if lam <= 0.0:
-        return 0.0
-    if lam < _POISSON_INVERSION_MAX:
-        u = uniform(bits)
-        p = exp_nonpositive(-lam)
-        cdf = p
-        k = 0
-        while u > cdf and k < _POISSON_INVERSION_CAP:
-            k += 1
-            p *= lam * _INV_INT[k]
-            cdf += p
-        return np.float64(k)
-    return _ptrs_from(lam, bits, np.uint64(0))
-
-
-@njit(**_opts)
-def _ptrs_from(lam, bits, j):
-    """The transformed rejection for ``lam`` ≥ 10 from attempt ``j`` (even) on:
-    :func:`poisson` starts at 0, the block sampler at 2 for the lanes whose
-    first attempt it ran and rejected (the same bits either way)."""
-    loglam, b, a, inv_alpha, v_r = _ptrs_constants(lam)
-    while True:
-        k, v, us = _ptrs_draw(bits, j, lam, a, b)
-        j += np.uint64(2)
-        if _ptrs_squeeze(us, v, v_r):
-            return k
-        if not _ptrs_not_rejected(k, us, v):
-            continue
-        if _ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - _log_factorial(k):
-            return k
-
-
-@njit(inline="always", **_opts)
-def _ptrs_constants(lam):
-    """Constants of the transformed rejection for mean ``lam`` ≥ 10 (Hörmann
-    1993): ``(log λ, b, a, 1/α, v_r)``."""
-    b = 0.931 + 2.53 * np.sqrt(lam)
-    a = -0.059 + 0.02483 * b
-    inv_alpha = 1.1239 + 1.1328 / (b - 3.4)
-    v_r = 0.9277 - 3.6224 / (b - 2.0)
-    return log_positive(lam), b, a, inv_alpha, v_r
-
-
-@njit(inline="always", **_opts)
-def _ptrs_draw(bits, j, lam, a, b):
-    """Attempt ``j`` (even): the candidate ``k``, the uniform ``v`` and ``us = ½ − |u|``."""
-    u = uniform(pixel_bits(bits, j)) - 0.5
-    v = uniform(pixel_bits(bits, j + _U1))
-    us = 0.5 - abs(u)
-    return np.floor((2.0 * a / us + b) * u + lam + 0.43), v, us
-
-
-@njit(inline="always", **_opts)
-def _ptrs_squeeze(us, v, v_r):
-    """The squeeze: accept without the full test."""
-    return (us >= 0.07) & (v <= v_r)
-
-
-@njit(inline="always", **_opts)
-def _ptrs_not_rejected(k, us, v):
-    """False where the attempt is rejected before the full test."""
-    return (k >= 0.0) & ((us >= 0.013) | (v <= us))
-
-
-@njit(inline="always", **_opts)
-def _ptrs_lhs(v, us, a, b, inv_alpha):
-    """Left side of the full acceptance test ``lhs ≤ −λ + k log λ − log k!``."""
-    return log_positive(v) + log_positive(inv_alpha) - log_positive(a / (us * us) + b)
-
-
-@njit(inline="always", **_opts)
-def _shot_noise_block(ibuf, electrons, rkey, pix0, zbuf, bbuf, work):
-    """``ibuf[i] ← poisson(ibuf[i]·e_i, bits_i)/e_i`` for the 64 lanes of a block.
-
-    Bit for bit :func:`poisson`, in up to three passes, the first two
-    branch-free over the lanes:
-
-    * λ ≥ 10: the first attempt of the transformed rejection
-      (:func:`_ptrs_first_attempt`); it settles 75 % of draws at λ = 10 and
-      87 % at λ = 480;
-    * λ < 10: the inversion search run in lock-step for all lanes, for as
-      many steps as the block's largest such λ needs (λ + 4√λ + 6; beyond
-      that, P < 1e-5, the search is left to the last pass);
-    * the lanes left go on one by one: the rejection from its second attempt,
-      the search from the start.
-
-    ``zbuf``/``bbuf`` are scratch (float64/uint64), ``work`` (5, 64) float64.
-    """
-    lam_v = work[0]
-    n_small = 0
-    small_max = 0.0
-    for lane in range(BLOCK):
-        lam = min(ibuf[lane] * electrons[lane], LAMBDA_MAX)
-        lam_v[lane] = lam
-        bbuf[lane] = pixel_bits(rkey, pix0 + np.uint64(lane))
-        small = lam < _POISSON_INVERSION_MAX
-        n_small += 1 if small else 0
-        small_max = max(small_max, lam if small else 0.0)
-    if n_small < BLOCK:
-        _ptrs_first_attempt(lam_v, bbuf, zbuf)
-    else:
-        for lane in range(BLOCK):
-            zbuf[lane] = np.nan
-    if n_small:
-        _inversion_lockstep(lam_v, bbuf, zbuf, work, small_max)
-    slow = 0
-    for lane in range(BLOCK):
-        slow += 0 if zbuf[lane] >= 0.0 else 1  # NaN or undecided
-    if slow:
-        for lane in range(BLOCK):
-            z = zbuf[lane]
-            if not z >= 0.0:  # not settled by the passes above
-                lam = lam_v[lane]
-                if lam < _POISSON_INVERSION_MAX:
-                    zbuf[lane] = poisson(lam, bbuf[lane])
-                else:  # attempt 0 rejected: go on from attempt 2; undecided: redo it
-                    first = np.uint64(0) if z == _UNDECIDED else np.uint64(2)
-                    zbuf[lane] = _ptrs_from(lam, bbuf[lane], first)
-    for lane in range(BLOCK):
-        ibuf[lane] = zbuf[lane] / electrons[lane]
-
-
-@njit(inline="always", **_opts)
-def _ptrs_attempt(lam, bits, j):
-    """Attempt ``j`` of :func:`_ptrs_from` for ``lam`` ≥ 10 without branches:
-    the draw if accepted (squeeze, or the full test with ``log k!`` from the
-    table), NaN if rejected, :data:`_UNDECIDED` where the full test needs
-    ``log k!`` beyond the table (the caller then runs :func:`_ptrs_from` from
-    this attempt).  The same helpers, so the same bits as the scalar loop."""
-    table_top = np.float64(_LOG_FACTORIAL.shape[0] - 1)
-    loglam, b, a, inv_alpha, v_r = _ptrs_constants(lam)
-    k, v, us = _ptrs_draw(bits, j, lam, a, b)
-    log_fact = _LOG_FACTORIAL[np.int64(min(max(k, 0.0), table_top))]
-    tested = _ptrs_not_rejected(k, us, v)
-    full = (tested & (k <= table_top)
-            & (_ptrs_lhs(v, us, a, b, inv_alpha) <= -lam + k * loglam - log_fact))
-    undecided = tested & (k > table_top)
-    return k if _ptrs_squeeze(us, v, v_r) | full else (_UNDECIDED if undecided else np.nan)
-
-
-@njit(inline="always", **_opts)
-def _ptrs_first_attempt(lam_v, bbuf, zbuf):
-    """Attempt 0 for every lane with λ ≥ 10: ``zbuf`` gets the accepted draws,
-    :data:`_UNDECIDED` or NaN elsewhere (lanes with λ < 10 compute it at
-    λ = 10, not kept)."""
-    for lane in range(BLOCK):
-        lam = lam_v[lane]
-        k = _ptrs_attempt(max(lam, _POISSON_INVERSION_MAX), bbuf[lane], np.uint64(0))
-        zbuf[lane] = k if lam >= _POISSON_INVERSION_MAX else np.nan
-
-
-@njit(inline="always", **_opts)
-def _inversion_lockstep(lam_v, bbuf, zbuf, work, small_max):
-    """The inversion search of :func:`poisson` for every lane with λ < 10 at
-    once: step ``j`` updates ``p_j``, ``F_j`` and counts the lanes still above
-    their CDF, so after ``J`` steps the count is the draw wherever ``u ≤ F_J``.
-    Writes those draws to ``zbuf``; other λ < 10 lanes keep NaN."""
-    u_v = work[1]
-    p_v = work[2]
-    cdf_v = work[3]
-    k_v = work[4]
-    for lane in range(BLOCK):
-        lam = lam_v[lane]
-        small = lam < _POISSON_INVERSION_MAX
-        p = exp_nonpositive(-(lam if small else 0.0))
-        u_v[lane] = uniform(bbuf[lane])
-        p_v[lane] = p if small else 0.0  # other lanes: inert
-        cdf_v[lane] = p if small else 0.0
-        k_v[lane] = 0.0
-    steps = min(np.int64(small_max + 4.0 * np.sqrt(small_max) + 6.0), _POISSON_INVERSION_CAP)
-    for j in range(1, steps + 1):
-        inv_j = _INV_INT[j]
-        for lane in range(BLOCK):
-            go = u_v[lane] > cdf_v[lane]  # the scalar loop's condition; stopped lanes freeze
-            p = p_v[lane] * (lam_v[lane] * inv_j)
-            p_v[lane] = p if go else p_v[lane]
-            cdf_v[lane] = cdf_v[lane] + p if go else cdf_v[lane]
-            k_v[lane] += 1.0 if go else 0.0
-    for lane in range(BLOCK):
-        done = (lam_v[lane] < _POISSON_INVERSION_MAX) & (u_v[lane] <= cdf_v[lane])
-        zbuf[lane] = k_v[lane] if done else zbuf[lane]
 
 
 @njit(inline="always", **_opts)
@@ -456,7 +236,7 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
 @njit(inline="always", **_opts)
 def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
                   paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf, bbuf,
-                  pkeys, shot_work, charge_sd, key_charge):
+                  pkeys, shot_work, charge_sd, key_charge, loss, after):
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
@@ -466,6 +246,9 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
     Each stage is a separate loop over the 64 lanes so the stages without
     data-dependent control flow vectorise; padding lanes (x ≥ width) have
     zero gain and offset, so they never fire whatever noise is drawn for them.
+    ``loss`` > 0: the mean charge of a lane whose ``after`` flag is 1 (it
+    fired at the previous readout) is scaled by ``1 − loss`` (charge loss at
+    reset, before shot and charge noise); the flags are updated here.
     """
     pix0 = np.uint64(y * width + x0)
     if paper_sg2 > 0.0 or paper_sp2 > 0.0:
@@ -481,6 +264,9 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
                 ibuf[lane] = max(ibuf[lane] + sd * zbuf[lane], 0.0)
     for lane in range(BLOCK):
         ibuf[lane] = gain[lane] * ibuf[lane] + offset[lane]
+    if loss > 0.0:
+        for lane in range(BLOCK):
+            ibuf[lane] *= 1.0 - loss * after[lane]
     if electrons[0] >= 0.0:
         _shot_noise_block(ibuf, electrons, readout_key(key_shot, n), pix0, zbuf, bbuf,
                           shot_work)
@@ -503,6 +289,9 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
         m |= np.uint64(fire) << np.uint64(lane)
         frac[lane] = s
         whole[lane] = w
+    if loss > 0.0:
+        for lane in range(BLOCK):
+            after[lane] = 1.0 if ((m >> np.uint64(lane)) & _U1) != 0 else 0.0
     if jitter > 0.0 and m != 0:
         # the next cycle's threshold is θ(1 + ε)  ⇔  the charge shifts by −ε;
         # deviates for all lanes (vectorised), applied where the lane fired
@@ -525,7 +314,7 @@ def _block_runs(frames, y, x0, width, t_off,
                 piece_a, piece_b, piece_len, piece_phi,
                 gain, offset, electrons, frac, whole, out, reset, fast_ok, paper_fast_ok,
                 paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
-                charge_sd, key_charge, scratch_f, scratch_u):
+                charge_sd, key_charge, scratch_f, scratch_u, ev, event, loss, ev_keys):
     """All runs of one chunk for one 64-pixel block and one accumulator set.
 
     ``scratch_f`` (12, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
@@ -534,6 +323,9 @@ def _block_runs(frames, y, x0, width, t_off,
     only.  Either path is taken for a run only where every lane's whole part
     is 0 and every charge < 1 θ, where the three reset modes reduce to a
     carry (modulo and subtract: keep the fraction; zero: clear it).
+    ``event``: shot noise by the event-driven sampler (``spikesim._event``)
+    with the block's state ``ev`` (4, 64); ``loss`` the charge loss at reset
+    (its flags in ``ev[AFTER_RESET]``).
     """
     ia = scratch_f[0]
     di = scratch_f[1]
@@ -551,6 +343,28 @@ def _block_runs(frames, y, x0, width, t_off,
     zero = reset == RESET_ZERO
     if paper_sg2 > 0.0 or paper_sp2 > 0.0 or jitter > 0.0 or charge_sd[0] >= 0.0:
         pixel_keys_into(np.uint64(y * width + x0), pkeys)
+    after = ev[AFTER_RESET]
+    if event:
+        pix0 = np.uint64(y * width + x0)
+        for r in range(run_kind.shape[0]):
+            n0 = run_start[r]
+            n1 = run_stop[r]
+            if run_kind[r] == RUN_PIECES:
+                _pieces_radiance(frames, run_p0[r], run_p1[r], piece_a, piece_b, piece_len,
+                                 piece_phi, y, x0, ibuf)
+                out[n0 - t_off, y, blk] = event_step(ibuf, gain, offset, electrons, ev, reset,
+                                                     jitter, loss, ev_keys, pix0)
+                continue
+            t_a = run_ta[r]
+            inv = run_inv[r]
+            _segment_radiance(frames, run_a[r], run_b[r], y, x0, ia, di)
+            for n in range(n0, n1):
+                phi = (np.float64(n) + 0.5 - t_a) * inv
+                for lane in range(BLOCK):
+                    ibuf[lane] = ia[lane] + di[lane] * phi
+                out[n - t_off, y, blk] = event_step(ibuf, gain, offset, electrons, ev, reset,
+                                                    jitter, loss, ev_keys, pix0)
+        return
     for r in range(run_kind.shape[0]):
         n0 = run_start[r]
         n1 = run_stop[r]
@@ -559,7 +373,8 @@ def _block_runs(frames, y, x0, width, t_off,
                              piece_phi, y, x0, ibuf)
             m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                               reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                              key_jitter, zbuf, bbuf, pkeys, shot_work, charge_sd, key_charge)
+                              key_jitter, zbuf, bbuf, pkeys, shot_work, charge_sd, key_charge,
+                              loss, after)
             out[n0 - t_off, y, blk] = m
             continue
         t_a = run_ta[r]
@@ -608,7 +423,7 @@ def _block_runs(frames, y, x0, width, t_off,
                 m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
                                   reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
                                   key_jitter, zbuf, bbuf, pkeys, shot_work, charge_sd,
-                                  key_charge)
+                                  key_charge, loss, after)
                 out[n - t_off, y, blk] = m
 
 
@@ -637,7 +452,7 @@ def simulate_chunk(frames, width, t_off,
                    gain, offset, electrons, frac, whole, out, reset, fast_ok, paper_fast_ok,
                    paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
                    clean, c_frac, c_whole, c_out, c_gain, c_offset, c_electrons,
-                   charge_sd, key_charge, init, init_key):
+                   charge_sd, key_charge, init, init_key, aux, event, loss, ev_keys):
     """Simulate readouts ``[run_start[0], run_stop[-1])`` for every pixel.
 
     ``frames`` (H, Wp/64, K', 64) float32 hold the sensor-channel radiances at
@@ -661,12 +476,21 @@ def simulate_chunk(frames, width, t_off,
     which on a little-endian machine is exactly the little-bit-order packed
     byte layout (viewed as uint8, rows padded to Wp/8 bytes).  When ``clean`` is true the
     noise-free twin is advanced in the same pass with its own arrays.
+    ``aux`` (4, H, Wp) float64 is the event-driven state (``spikesim._event``:
+    wait, need, cycle, after-reset flag), used when ``event`` (shot noise
+    drawn per spike; ``ev_keys`` (4,) uint64 the keys of its wait, residual,
+    refill and jitter draws) or ``loss`` > 0 (charge
+    loss at reset, the fraction of the next readout's charge lost; row 3 the
+    flags); otherwise it may be a (4, 1, 64) dummy.  With ``init`` ≥ 0 it is
+    initialised from the initial accumulator.
     """
     height = frames.shape[0]
     nblk = frames.shape[1]
     for y in prange(height):
         scratch_f = np.empty((12, BLOCK), np.float64)
         scratch_u = np.empty((4, BLOCK), np.uint64)
+        ev = np.zeros((4, BLOCK), np.float64)  # the block's event state, contiguous
+        use_aux = event or loss > 0.0
         f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
         w = np.empty(BLOCK, np.int64)
         # a single row (1, Wp) is shared by every row (min() would mistype in prange)
@@ -683,18 +507,32 @@ def simulate_chunk(frames, width, t_off,
                 for x in range(frac.shape[1]):
                     c_frac[y, x] = frac[y, x]
                     c_whole[y, x] = whole[y, x]
+            if event:
+                init_event_row(aux[:, y], frac[y], electrons[ey], ev_keys[0], y, width)
+            elif use_aux:
+                for x in range(frac.shape[1]):
+                    aux[AFTER_RESET, y, x] = 0.0
         for b in range(nblk):
             x0 = b * BLOCK
             sl = slice(x0, x0 + BLOCK)
             _load_state(frac, whole, y, x0, f, w)
+            if use_aux:
+                for k in range(4):
+                    for lane in range(BLOCK):
+                        ev[k, lane] = aux[k, y, x0 + lane]
             _block_runs(frames, y, x0, width, t_off,
                         run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
                         run_p1, piece_a, piece_b, piece_len, piece_phi,
                         gain[gy, sl], offset[oy, sl], electrons[ey, sl], f, w, out, reset,
                         fast_ok,
                         paper_fast_ok, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                        key_jitter, charge_sd[csy, sl], key_charge, scratch_f, scratch_u)
+                        key_jitter, charge_sd[csy, sl], key_charge, scratch_f, scratch_u,
+                        ev, event, loss, ev_keys)
             _store_state(frac, whole, y, x0, f, w)
+            if use_aux:
+                for k in range(4):
+                    for lane in range(BLOCK):
+                        aux[k, y, x0 + lane] = ev[k, lane]
             if clean:
                 _load_state(c_frac, c_whole, y, x0, f, w)
                 _block_runs(frames, y, x0, width, t_off,
@@ -704,7 +542,7 @@ def simulate_chunk(frames, width, t_off,
                             c_out, reset, True, False, 0.0, 0.0, np.uint64(0),
                             np.uint64(0),
                             0.0, np.uint64(0), c_electrons[cey, sl], np.uint64(0),
-                            scratch_f, scratch_u)
+                            scratch_f, scratch_u, ev, False, 0.0, ev_keys)
                 _store_state(c_frac, c_whole, y, x0, f, w)
 
 

@@ -132,7 +132,8 @@ def ideal_spike_times(scene, sensor, n_readouts: int, seed: int = 0) -> IdealSpi
     """
     if sensor.noise is not None and sensor.noise.per_readout:
         raise bad_value("sensor.noise", sensor.noise,
-                        "no per-readout noise (the ideal reference is deterministic)")
+                        "no per-readout noise and no reset_charge_loss (the ideal reference is "
+                        "deterministic and unclocked)")
     if not isinstance(n_readouts, int) or n_readouts < 1:
         raise bad_value("n_readouts", n_readouts, "an integer >= 1")
     h, w = sensor.shape

@@ -12,8 +12,10 @@ negative light clipped at 0.  ``σ_p = 0`` is the Gaussian (GN) case,
 
 *Physical mode* — :class:`PhysicalNoise`: per-pixel fixed patterns
 (threshold mismatch, photo-response non-uniformity, dark current with spread,
-hot pixels) and per-readout temporal noise (Poisson photon shot noise on the
-collected electrons, comparator threshold noise per firing cycle).  Default
+hot pixels) and temporal noise (Poisson photon shot noise on the collected
+electrons, drawn per spike by ``spikesim._event``; comparator threshold noise
+per firing cycle; optional accumulating charge noise), plus an optional charge
+loss at reset.  Default
 magnitudes follow published circuit-level figures for spike-camera pixels
 (SCSim, Zhao et al. 2024): threshold FPN 4.5 %, PRNU 5.8 %, temporal threshold
 noise 0.6 % per comparison, dark current 0.5 % of full scale with 39 %
@@ -40,7 +42,8 @@ __all__ = ["PaperNoise", "PhysicalNoise", "noise_from_dict", "FixedPattern", "fi
            "NO_NOISE_PARAMS"]
 
 #: The kernel's noise parameters of an ideal sensor (see ``kernel_params``).
-NO_NOISE_PARAMS = {"paper_sg2": 0.0, "paper_sp2": 0.0, "paper_only": False, "jitter": 0.0}
+NO_NOISE_PARAMS = {"paper_sg2": 0.0, "paper_sp2": 0.0, "paper_only": False, "jitter": 0.0,
+                   "loss": 0.0}
 
 
 def _check_nonneg(name: str, value: float, upper: float = math.inf) -> float:
@@ -94,7 +97,7 @@ class PaperNoise(_NoiseBase):
         fast path applies), no comparator jitter.  Per-pixel inputs come from
         :func:`fixed_pattern`."""
         return {"paper_sg2": self.sigma_g**2, "paper_sp2": self.sigma_p**2, "paper_only": True,
-                "jitter": 0.0}
+                "jitter": 0.0, "loss": 0.0}
 
     def variance_dn(self, y_dn):
         """Noise variance (DN²) at latent intensity ``y_dn`` (DN), eq. 5."""
@@ -138,7 +141,16 @@ class PhysicalNoise(_NoiseBase):
         a cycle of ``m`` readouts it adds ``m·σ²`` to the charge variance, so
         the interval CV grows with the interval length,
         ``CV² = κ² + m·(σ/E)²`` (:mod:`spikesim.analysis.theory`).  The
-        accumulator may dip below the reset level.  Default 0 (off).
+        accumulator may dip below the reset level.  Default 0 (off).  With
+        shot noise on, this source makes the simulator draw the shot noise per
+        readout instead of per spike (slower; same law).
+    reset_charge_loss : float
+        Fraction in [0, 1) of the charge collected in the readout right after
+        each firing (reset) that is lost (SCSim models a retention of 0.998,
+        i.e. 0.002).  The mean charge of that readout is scaled by ``1 − f``
+        before shot noise (a thinned Poisson count is Poisson); noise free the
+        rate becomes ``q/(1 + f·q)`` and the mean interval ``1/q + f`` readouts
+        (:mod:`spikesim.analysis.theory`).  Default 0 (off).
     fpn_seed : int
         Seed of the chip's fixed patterns (independent of the simulation seed).
     """
@@ -154,6 +166,7 @@ class PhysicalNoise(_NoiseBase):
     hot_pixel_dark_rel: float = 0.2
     fpn_seed: int = 0
     charge_noise_electrons: float = 0.0
+    reset_charge_loss: float = 0.0
     kind = "physical"
 
     def __post_init__(self):
@@ -175,21 +188,36 @@ class PhysicalNoise(_NoiseBase):
             ("charge_noise_electrons", 1e9),
         ):
             object.__setattr__(self, name, _check_nonneg(name, getattr(self, name), upper))
+        loss = self.reset_charge_loss
+        if not (is_real(loss) and math.isfinite(float(loss)) and 0.0 <= float(loss) < 1.0):
+            raise bad_value("reset_charge_loss", loss,
+                            "a fraction in [0, 1) of the next readout's charge (0.002 for 0.998 "
+                            "retention)")
+        object.__setattr__(self, "reset_charge_loss", float(loss))
         if not isinstance(self.fpn_seed, (int, np.integer)) or self.fpn_seed < 0:
             raise bad_value("fpn_seed", self.fpn_seed, "a non-negative integer")
         object.__setattr__(self, "fpn_seed", int(self.fpn_seed))
 
     @property
     def per_readout(self) -> bool:
+        """True when the model needs the clocked, stateful kernel path: temporal
+        noise (shot, threshold, charge) or charge loss at reset."""
         return (self.shot_noise or self.temporal_threshold_noise > 0
-                or self.charge_noise_electrons > 0)
+                or self.charge_noise_electrons > 0 or self.reset_charge_loss > 0)
+
+    @property
+    def event_driven(self) -> bool:
+        """True when the kernel draws the shot noise per spike (spikesim._event):
+        shot noise on and no per-readout charge noise."""
+        return self.shot_noise and self.charge_noise_electrons == 0
 
     def kernel_params(self) -> dict:
         """This model's scalar inputs of the kernel: ``jitter`` = σ_t (relative
-        threshold s.d. per firing cycle); no paper-mode terms.  Shot noise and
-        charge noise are per pixel (:func:`fixed_pattern`)."""
+        threshold s.d. per firing cycle), ``loss`` the charge loss at reset;
+        no paper-mode terms.  Shot noise and charge noise are per pixel
+        (:func:`fixed_pattern`)."""
         return {"paper_sg2": 0.0, "paper_sp2": 0.0, "paper_only": False,
-                "jitter": self.temporal_threshold_noise}
+                "jitter": self.temporal_threshold_noise, "loss": self.reset_charge_loss}
 
     @property
     def has_fixed_pattern(self) -> bool:

@@ -9,10 +9,12 @@ check the kernel bit for bit and to serve as the vectorised-NumPy baseline of
 Supported: every reset mode, CFA, key-frame layout, fixed patterns, paper
 (eq. 5) noise, the temporal threshold noise of physical mode (after each
 firing the next threshold is θ(1 + ε), ε = σ_t·z clipped to ±½, i.e. the
-charge moves by −ε) and its accumulating charge noise (``charge_sd·z`` added
-to every readout's charge).  Not supported: Poisson shot noise, whose kernel
-implementation is checked statistically and lane by lane against the scalar
-sampler.
+charge moves by −ε), its accumulating charge noise (``charge_sd·z`` added
+to every readout's charge), its charge loss at reset (the readout after a
+firing collects ``1 − f`` of its mean charge) and its event-driven Poisson
+shot noise (``spikesim.reference_event``).  Not supported: the per-readout
+shot-noise sampler (used with charge noise), checked statistically and lane
+by lane against the scalar sampler.
 
 The float64 accumulator differs from the kernel's exact fixed point by
 rounding (~1e-16 θ per readout), which can only change a bit when the charge
@@ -167,9 +169,12 @@ def reference_simulate(scene, sensor, n_readouts: int, seed: int = 0) -> np.ndar
     tau = np.where(np.abs(tau - near) < 1e-9, near, tau)
     frames = np.stack([_sensor_view(scene.radiance(t), sensor.cfa) for t in times.tolist()])
     noise = sensor.noise
-    if isinstance(noise, PhysicalNoise) and noise.shot_noise:
-        raise ValueError("the reference does not support Poisson shot noise")
-    jitter = noise.temporal_threshold_noise if isinstance(noise, PhysicalNoise) else 0.0
+    physical = isinstance(noise, PhysicalNoise)
+    if physical and noise.shot_noise and not noise.event_driven:
+        raise ValueError("the reference does not support the per-readout shot-noise sampler "
+                         "(shot noise with charge noise)")
+    jitter = noise.temporal_threshold_noise if physical else 0.0
+    loss = noise.reset_charge_loss if physical else 0.0
     key_jitter = rng.stream_key(seed, rng.STREAM_JITTER)
     key_charge = rng.stream_key(seed, rng.STREAM_CHARGE)
     pattern = fixed_pattern(noise, h, w, sensor.full_scale_rate)
@@ -181,6 +186,14 @@ def reference_simulate(scene, sensor, n_readouts: int, seed: int = 0) -> np.ndar
         acc = np.zeros((h, w))
     key_paper = rng.stream_key(seed, rng.STREAM_PAPER)
     out = np.zeros((n_readouts, h, w), np.uint8)
+    if physical and noise.event_driven:
+        from spikesim.reference_event import EventReference
+
+        events = EventReference(pattern.electrons, acc, sensor.reset, jitter, loss, seed)
+        for n in range(n_readouts):
+            out[n] = events.step(pattern.gain * _mean_radiance(frames, tau, n) + pattern.offset)
+        return np.packbits(out, axis=-1, bitorder="little")
+    after = np.zeros((h, w))
     for n in range(n_readouts):
         level = _mean_radiance(frames, tau, n)
         if isinstance(noise, PaperNoise) and noise.per_readout:
@@ -188,12 +201,15 @@ def reference_simulate(scene, sensor, n_readouts: int, seed: int = 0) -> np.ndar
             sd = np.sqrt(noise.sigma_g**2 + noise.sigma_p**2 * 255.0 * level) / 255.0
             level = np.maximum(level + sd * z, 0.0)
         q = pattern.gain * level + pattern.offset
+        if loss > 0.0:  # charge loss in the readout after a firing
+            q = q * (1.0 - loss * after)
         if pattern.charge_sd is not None:  # accumulating charge noise, after the mean charge
             z = normal_np(_pixel_bits_np(_readout_key_np(key_charge, n), n_pix)).reshape(h, w)
             q = q + pattern.charge_sd * z
         acc = acc + q
         spike = acc >= 1.0
         out[n] = spike
+        after = spike.astype(np.float64)
         if sensor.reset == "modulo":
             acc = np.where(spike, acc - np.floor(acc), acc)
         elif sensor.reset == "subtract":

@@ -47,6 +47,9 @@ __all__ = [
     "STREAM_SHOT",
     "STREAM_JITTER",
     "STREAM_CHARGE",
+    "STREAM_WAIT",
+    "STREAM_RESIDUAL",
+    "STREAM_REFILL",
     "STREAM_FPN_THRESHOLD",
     "STREAM_FPN_GAIN",
     "STREAM_FPN_DARK",
@@ -82,6 +85,11 @@ STREAM_PAPER = 2
 STREAM_SHOT = 3
 STREAM_JITTER = 4
 STREAM_CHARGE = 5
+# Event-driven shot noise (spikesim._event): keyed per (pixel, firing cycle),
+# the cycle index taking the place of the readout index.
+STREAM_WAIT = 6
+STREAM_RESIDUAL = 7
+STREAM_REFILL = 8
 STREAM_FPN_THRESHOLD = 16
 STREAM_FPN_GAIN = 17
 STREAM_FPN_DARK = 18

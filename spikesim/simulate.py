@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,6 +36,9 @@ CHUNK_OUTPUT_BYTES = 32 << 20
 CHUNK_KEYFRAME_BYTES = 256 << 20
 if sys.byteorder != "little":  # pragma: no cover - every supported target is little-endian
     raise ImportError("spikesim's kernel writes packed bits as little-endian 64-bit words")
+#: Shot-noise samplers: per spike (``spikesim._event``) or per readout (the
+#: original sampler, kept as the statistical tests' reference).
+_SHOT_SAMPLERS = ("event", "readout")
 _RESET_CODES = {"modulo": _kernels.RESET_MODULO, "subtract": _kernels.RESET_SUBTRACT,
                 "zero": _kernels.RESET_ZERO}
 
@@ -60,7 +63,8 @@ class SimulationRun:
 
     def __init__(self, scene, sensor: Sensor, n_readouts: int, seed: int = 0,
                  clean_twin: bool = False, gt_readouts: Sequence[int] | None = None,
-                 chunk_readouts: int | None = None, progress: bool = False):
+                 chunk_readouts: int | None = None, progress: bool = False, *,
+                 shot_sampler: str = "event"):
         if not isinstance(sensor, Sensor):
             raise SpikeSimTypeError(
                 f"sensor must be a spikesim.Sensor, got {type(sensor).__name__}")
@@ -92,6 +96,9 @@ class SimulationRun:
             chunk_readouts = max(16, min(4096, CHUNK_OUTPUT_BYTES // max(per_readout, 1)))
         self.chunk_readouts = _check_int("chunk_readouts", chunk_readouts, 1)
         self.progress = bool(progress)
+        if shot_sampler not in _SHOT_SAMPLERS:
+            raise bad_value("shot_sampler", shot_sampler, f"one of {_SHOT_SAMPLERS}")
+        self.shot_sampler = shot_sampler
         idx = channel_index(sensor.cfa, 2, 2)
         self._tile = np.full((2, 2), -1, np.int64) if idx is None else idx.astype(np.int64)
         self._checked: np.ndarray | None = None  # a read-only radiance array known valid
@@ -184,7 +191,8 @@ class SimulationRun:
         h, w = sensor.shape
         wp = _padded_width(w)
         nbytes = packed_width(w)
-        noisy = _KernelInputs.build(sensor, self.seed, sensor.noise)
+        noisy = _KernelInputs.build(sensor, self.seed, sensor.noise,
+                                    self.shot_sampler == "event")
         clean = (_KernelInputs.build(sensor, self.seed, None) if self.clean_twin
                  else _KernelInputs.unused())
         dummy_out = np.zeros((1, 1, 1), np.uint64)
@@ -213,7 +221,8 @@ class SimulationRun:
                     noisy.paper_fast_ok, noisy.paper_sg2, noisy.paper_sp2, noisy.key_paper,
                     noisy.key_shot, noisy.jitter, noisy.key_jitter, self.clean_twin,
                     clean.frac, clean.whole, c_out, clean.gain, clean.offset, clean.electrons,
-                    noisy.charge_sd, noisy.key_charge, init, noisy.key_init,
+                    noisy.charge_sd, noisy.key_charge, init, noisy.key_init, noisy.aux,
+                    noisy.event, noisy.loss, noisy.ev_keys,
                 )
                 init = -1  # later chunks carry the state on
                 gt, sel = self._ground_truth(n0, n1)
@@ -253,21 +262,30 @@ class _KernelInputs:
     key_jitter: np.uint64 = np.uint64(0)
     key_charge: np.uint64 = np.uint64(0)
     key_init: np.uint64 = np.uint64(0)
+    aux: np.ndarray = field(default_factory=lambda: np.zeros((4, 1, 64)))
+    event: bool = False
+    loss: float = 0.0
+    ev_keys: np.ndarray = field(default_factory=lambda: np.zeros(4, np.uint64))
 
     @classmethod
-    def build(cls, sensor: Sensor, seed: int, noise) -> _KernelInputs:
+    def build(cls, sensor: Sensor, seed: int, noise, event: bool = True) -> _KernelInputs:
+        """Inputs for ``noise`` (None: the clean twin).  ``event``: draw shot
+        noise per spike where the model allows it (``noise.event_driven``),
+        else per readout (the reference sampler of the statistical tests)."""
         h, w = sensor.shape
         wp = _padded_width(w)
         gain, offset, electrons, charge_sd = _charge_constants(noise, h, w,
                                                                sensor.full_scale_rate)
         params = NO_NOISE_PARAMS if noise is None else noise.kernel_params()
         per_readout = noise is not None and noise.per_readout
+        event = bool(event and isinstance(noise, PhysicalNoise) and noise.event_driven)
+        aux = (np.empty((4, h, wp)) if event or params["loss"] > 0 else np.zeros((4, 1, 64)))
         return cls(
             gain, offset, electrons, charge_sd,
             frac=np.empty((h, wp), np.uint64),  # initialised by the kernel's first call
             whole=np.empty((h, wp), np.int64),
             reset=_RESET_CODES[sensor.reset],
-            fast_ok=not per_readout,
+            fast_ok=not per_readout,  # charge loss makes per_readout true
             paper_fast_ok=params["paper_only"],
             paper_sg2=params["paper_sg2"],
             paper_sp2=params["paper_sp2"],
@@ -277,6 +295,12 @@ class _KernelInputs:
             key_jitter=rng.stream_key(seed, rng.STREAM_JITTER),
             key_charge=rng.stream_key(seed, rng.STREAM_CHARGE),
             key_init=rng.stream_key(seed, rng.STREAM_INIT),
+            aux=aux,  # initialised by the kernel's first call
+            event=event,
+            loss=params["loss"],
+            ev_keys=np.array([rng.stream_key(seed, s) for s in (
+                rng.STREAM_WAIT, rng.STREAM_RESIDUAL, rng.STREAM_REFILL, rng.STREAM_JITTER)],
+                np.uint64),
         )
 
     @classmethod
@@ -346,15 +370,16 @@ def _padded_width(width: int) -> int:
 
 def simulate_chunks(scene, sensor: Sensor, n_readouts: int, seed: int = 0,
                     clean_twin: bool = False, gt_readouts: Sequence[int] | str | None = None,
-                    chunk_readouts: int | None = 256, progress: bool = False) -> SimulationRun:
+                    chunk_readouts: int | None = 256, progress: bool = False, *,
+                    shot_sampler: str = "event") -> SimulationRun:
     """Configure a simulation whose chunks are produced lazily (see :class:`SimulationRun`)."""
     return SimulationRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
-                         chunk_readouts, progress)
+                         chunk_readouts, progress, shot_sampler=shot_sampler)
 
 
 def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: bool = False,
              gt_readouts: Sequence[int] | str | None = None, chunk_readouts: int | None = None,
-             progress: bool = False) -> SpikeStream:
+             progress: bool = False, *, shot_sampler: str = "event") -> SpikeStream:
     """Simulate ``n_readouts`` readouts of ``sensor`` looking at ``scene``.
 
     Parameters
@@ -377,6 +402,12 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
         Readouts per chunk (memory bound); results do not depend on it.
     progress : bool
         Show a progress bar.
+    shot_sampler : {"event", "readout"}
+        How physical-mode shot noise is drawn: ``"event"`` (default) the
+        readout of each threshold crossing per firing cycle (work per spike,
+        ``spikesim._event``), ``"readout"`` a Poisson count per pixel and
+        readout (work per readout).  Same law, different bits; a model with
+        ``charge_noise_electrons`` > 0 always draws per readout.
 
     Returns
     -------
@@ -396,7 +427,7 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
     (0.3, (1, 4, 8, 3), [50])
     """
     run = SimulationRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
-                        chunk_readouts, progress)
+                        chunk_readouts, progress, shot_sampler=shot_sampler)
     h, nb = sensor.height, packed_width(sensor.width)
     packed = np.empty((run.n_readouts, h, nb), np.uint8)
     clean = np.empty_like(packed) if run.clean_twin else None

@@ -91,7 +91,8 @@ def quantization_study(sensor="ideal", levels=DEFAULT_Q_LEVELS, n_readouts: int 
     sensor = check_sensor(sensor)
     if sensor.noise is not None and sensor.noise.per_readout:
         raise bad_value("sensor.noise", sensor.noise.to_dict(),
-                        "no per-readout noise (the ideal reference is deterministic)")
+                        "no per-readout noise and no reset_charge_loss (the ideal reference is "
+                        "deterministic and unclocked)")
     lv = check_levels(levels)
     if np.any(lv <= 0):
         raise bad_value("levels", levels, "radiances > 0")

@@ -36,6 +36,19 @@ eq. 1 for the pixel, eq. 5 for paper-mode noise):
   CV² is ``κ² + σ_q²·m`` with ``m = 1/q``: it grows with the interval length,
   unlike per-cycle noise (:func:`isi_cv2_theory`).
 
+* **Charge loss at reset** (``reset_charge_loss`` f): the readout after each
+  firing collects ``(1 − f)·q``.  Noise free, over N readouts with S spikes
+  the charge collected is ``N·q − S·f·q`` and (modulo, subtract) each spike
+  consumes one threshold, so the rate is ``q/(1 + f·q)`` (at most 1) and the
+  mean interval ``1/q + f`` readouts; zero reset needs
+  ``⌈1/q + f⌉`` readouts per cycle.  With temporal noise the cycle is the
+  deterministic shift ``f`` plus the time to gain one threshold, so
+  ``Var(τ)`` is unchanged and the cycle CV² is
+  ``(κ² + σ_q²·m₀)·(m₀/(m₀ + f))²`` with ``m₀ = 1/q``: the loss lowers the
+  CV of short intervals only, by a factor ``(1 − f/m)²`` at interval ``m``
+  (f = 0.002, m = 17…38: at most 1.2e-4 relative), so it cannot make the CV
+  grow with the interval length as accumulating charge noise does.
+
 The expectation ``E[frac(X)(1 − frac(X))]`` over a Gaussian ``X`` is computed
 from the Fourier series of the sawtooth (:func:`frac_variance`).
 """
@@ -64,14 +77,18 @@ _FOURIER_TERMS = 400
 _M = np.arange(1, _FOURIER_TERMS + 1, dtype=np.float64)[None, :]
 
 
-def rate_theory(q, reset: str = "modulo") -> np.ndarray:
-    """Mean spikes per readout at charge ``q`` thresholds/readout for a reset mode."""
+def rate_theory(q, reset: str = "modulo", loss: float = 0.0) -> np.ndarray:
+    """Mean spikes per readout at charge ``q`` thresholds/readout for a reset
+    mode, with charge loss ``loss`` at reset (module notes): modulo and
+    subtract ``min(q/(1 + f·q), 1)``, zero ``1/⌈1/q + f⌉``."""
     q = np.asarray(q, dtype=np.float64)
+    f = float(loss)
     if reset == "zero":
         with np.errstate(divide="ignore"):
-            cyc = np.ceil(np.where(q > 0, 1.0 / np.maximum(q, 1e-300), np.inf) - 1e-12)
-        return np.where(q >= 1.0, 1.0, np.where(q > 0, 1.0 / cyc, 0.0))
-    return np.minimum(q, 1.0)
+            cyc = np.ceil(np.where(q > 0, 1.0 / np.maximum(q, 1e-300), np.inf) + f - 1e-12)
+        return np.where(q * (1.0 - f) >= 1.0, 1.0, np.where(q > 0, 1.0 / np.maximum(cyc, 1.0),
+                                                            0.0))
+    return np.minimum(q / (1.0 + f * q), 1.0)
 
 
 def frac_variance(mean, sd) -> np.ndarray:
@@ -138,26 +155,31 @@ def count_variance(q, window: int, v1=0.0) -> np.ndarray:
     return vx + frac_variance(window * q, np.sqrt(vx))
 
 
-def isi_mean_theory(q) -> np.ndarray:
-    """Mean inter-spike interval (readouts) at charge ``q < 1``: ``1/q``."""
-    return 1.0 / np.asarray(q, dtype=np.float64)
+def isi_mean_theory(q, loss: float = 0.0) -> np.ndarray:
+    """Mean inter-spike interval (readouts) at charge ``q < 1``: ``1/q + f``
+    with charge loss ``f`` at reset (0: ``1/q``)."""
+    return 1.0 / np.asarray(q, dtype=np.float64) + float(loss)
 
 
-def isi_var_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0) -> np.ndarray:
+def isi_var_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0,
+                   loss: float = 0.0) -> np.ndarray:
     """Variance of the clocked inter-spike interval (readouts²), see module
     notes: ``Var(τ) + E[frac(τ)(1 − frac(τ))]`` with
-    ``Var(τ) = κ²/q² + σ_q²/q³``."""
+    ``Var(τ) = κ²/q² + σ_q²/q³`` and ``E[τ] = 1/q + f``."""
     q = np.asarray(q, dtype=np.float64)
     sd = np.sqrt(kappa2 / q**2 + sigma_q2 / q**3)
-    return sd**2 + frac_variance(1.0 / q, sd)
+    return sd**2 + frac_variance(1.0 / q + float(loss), sd)
 
 
-def isi_cv2_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0) -> np.ndarray:
-    """Squared CV of the unclocked cycle length, ``κ² + σ_q²·m`` with
-    ``m = 1/q`` readouts: constant for per-cycle noise, growing linearly with
-    the interval for accumulating charge noise."""
+def isi_cv2_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0,
+                   loss: float = 0.0) -> np.ndarray:
+    """Squared CV of the unclocked cycle length, ``(κ² + σ_q²·m₀)·(m₀/(m₀ + f))²``
+    with ``m₀ = 1/q`` readouts and charge loss ``f``: constant for per-cycle
+    noise without loss, growing linearly with the interval for accumulating
+    charge noise; the loss only lowers it for short intervals."""
     q = np.asarray(q, dtype=np.float64)
-    return kappa2 + sigma_q2 / q
+    m0 = 1.0 / q
+    return (kappa2 + sigma_q2 * m0) * (m0 / (m0 + float(loss))) ** 2
 
 
 def isi_clean_pmf(q: float) -> dict[int, float]:

@@ -15,7 +15,7 @@ from scipy import stats
 
 import spikesim as ss
 from spikesim import rng
-from spikesim._kernels import poisson
+from spikesim._poisson import poisson
 from spikesim.reference import _f32_pair, normal_np
 from tests.support.core_helpers import counts, flat_rows
 
@@ -153,7 +153,7 @@ def test_block_shot_noise_equals_the_scalar_sampler():
     and beyond the ``log k!`` table (λ > 4096)."""
     from numba import njit
 
-    from spikesim._kernels import _shot_noise_block
+    from spikesim._poisson import _shot_noise_block
 
     @njit
     def block(charge, electrons, rkey, pix0):
@@ -184,7 +184,7 @@ def test_lockstep_inversion_leaves_unfinished_searches_to_the_scalar_sampler():
     then :func:`poisson` finishes them); the settled ones are ``poisson``'s."""
     from numba import njit
 
-    from spikesim._kernels import _inversion_lockstep
+    from spikesim._poisson import _inversion_lockstep
 
     @njit
     def lockstep(lam, bits, small_max):
@@ -331,7 +331,7 @@ def test_log_factorial_table_equals_lgamma_inside_and_beyond_the_table():
 
     from numba import njit
 
-    from spikesim._kernels import _LOG_FACTORIAL, _log_factorial
+    from spikesim._poisson import _LOG_FACTORIAL, _log_factorial
 
     @njit
     def both(k):

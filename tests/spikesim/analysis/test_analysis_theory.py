@@ -59,3 +59,31 @@ def test_capture_rejects_bad_arrays():
         as_capture(np.zeros((4, 4, 4), np.float32))
     with pytest.raises(SpikeSimTypeError):
         as_capture(3.0)
+
+
+def _clocked_clean(q, f, reset, n=20_000, a0=0.37):
+    """Independent slow model: exact rationals are not needed, a float loop of
+    the clocked pixel with charge loss f in the readout after each firing."""
+    a, after, spikes = a0, False, []
+    for _ in range(n):
+        a += q * (1.0 - f) if after else q
+        fire = a >= 1.0
+        if fire:
+            a = a - np.floor(a) if reset == "modulo" else (a - 1.0 if reset == "subtract" else 0.0)
+        after = fire
+        spikes.append(fire)
+    return np.array(spikes)
+
+
+@pytest.mark.parametrize("reset", ["modulo", "subtract", "zero"])
+@pytest.mark.parametrize("q", [0.013, 0.21, 0.55, 0.93])
+@pytest.mark.parametrize("f", [0.0, 0.002, 0.35])
+def test_rate_and_mean_interval_with_charge_loss_match_a_slow_loop(q, f, reset):
+    s = _clocked_clean(q, f, reset)
+    n = s.size
+    assert abs(s.sum() - n * theory.rate_theory(q, reset, f)) <= 2
+    if reset != "zero":
+        t = np.flatnonzero(s)
+        assert abs(np.diff(t).mean() - theory.isi_mean_theory(q, f)) < 2.5 / (t.size - 1)
+    if f == 0.0:
+        np.testing.assert_allclose(theory.rate_theory(q, reset, f), theory.rate_theory(q, reset))

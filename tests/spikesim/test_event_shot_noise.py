@@ -1,0 +1,159 @@
+"""Event-driven shot noise (``spikesim._event``): bit for bit against the NumPy
+reference, in law against the per-readout sampler and the theory, invariant to
+chunking.
+
+Statistical tolerances: KS two-sample p-values > 1e-4 and means within about
+4 standard errors (false alarm ~1e-4 per check if the laws were equal; the
+seeds are fixed, so a pass is reproducible).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import spikesim as ss
+from spikesim import _event, _kernels
+from spikesim._poisson import poisson
+from spikesim.analysis import theory
+from spikesim.errors import SpikeSimValueError
+from spikesim.reference import mix64_np, reference_simulate
+from spikesim.reference_event import gamma_ref, poisson_ref
+from tests.support.core_helpers import Keyframes, flat_rows
+
+RESETS = ["modulo", "subtract", "zero"]
+
+
+def _scene(rng, h, w, bright, clock, n):
+    imgs = [(rng.random((h, w, 3)) * bright).astype(np.float32) for _ in range(3)]
+    return Keyframes(np.array([0.0, 0.37 * n, 0.81 * n + 0.5]) / clock, imgs)
+
+
+@pytest.mark.parametrize("reset", RESETS)
+@pytest.mark.parametrize("e, bright, loss, jitter", [
+    (1000.0, 1.0, 0.0, 0.006),   # the defaults
+    (37.3, 2.5, 0.3, 0.05),      # few electrons, saturating light, large loss and jitter
+    (3.6, 1.5, 0.0, 0.1),        # a handful of electrons: many drops and backlogs
+])
+def test_event_sampler_matches_reference(reset, e, bright, loss, jitter):
+    """Moving scene, fixed patterns, hot pixels, every reset; chunk size 13."""
+    rng = np.random.default_rng(5)
+    clock, n = 1000.0, 90
+    noise = ss.noise.PhysicalNoise(electrons_per_threshold=e, temporal_threshold_noise=jitter,
+                                   reset_charge_loss=loss, hot_pixel_fraction=0.05)
+    sensor = ss.Sensor(height=3, width=70, cfa="RGGB", clock_hz=clock, reset=reset, noise=noise)
+    scene = _scene(rng, 3, 70, bright, clock, n)
+    got = ss.simulate(scene, sensor, n, seed=7, chunk_readouts=13).packed
+    want = reference_simulate(scene, sensor, n, seed=7)
+    np.testing.assert_array_equal(got, want)
+    assert 0.02 < ss.bits.unpack(got, 70).mean() < 0.98
+
+
+def test_reset_codes_and_backlog_limit_agree_with_the_kernel():
+    assert (_event.MODULO, _event.SUBTRACT, _event.ZERO) == (
+        _kernels.RESET_MODULO, _kernels.RESET_SUBTRACT, _kernels.RESET_ZERO)
+    assert _event.BACKLOG_MAX == _kernels.WHOLE_MAX
+
+
+@pytest.mark.parametrize("m", [1.0, 2.0, 7.0, 60.0, 1000.0])
+def test_gamma_sampler_follows_the_gamma_law_and_equals_the_reference(m):
+    bits = mix64_np(np.arange(20_000, dtype=np.uint64) * np.uint64(1_000_003) + np.uint64(m))
+    draws = np.array([_event.gamma_integer(m, b) for b in bits])
+    assert stats.kstest(draws, "gamma", args=(m,)).pvalue > 1e-4
+    assert abs(draws.mean() - m) < 4 * np.sqrt(m / draws.size)
+    assert abs(draws.var() / m - 1) < 4 * np.sqrt((2 + 6 / m) / draws.size)  # kurtosis 6/m
+    ref = [gamma_ref(m, int(b)) for b in bits[:500]]
+    np.testing.assert_array_equal(draws[:500], ref)
+
+
+@pytest.mark.parametrize("lam", [0.0, 0.3, 4.5, 9.99, 10.0, 55.5, 3000.0])
+def test_reference_poisson_equals_the_kernel_sampler(lam):
+    bits = mix64_np(np.arange(2000, dtype=np.uint64) * np.uint64(7) + np.uint64(1))
+    got = [poisson(lam, b) for b in bits]
+    np.testing.assert_array_equal(got, [poisson_ref(lam, int(b)) for b in bits])
+
+
+def _flat_noise(e, jitter, loss=0.0):
+    return ss.noise.PhysicalNoise(electrons_per_threshold=e, dark_current_rel=0.0,
+                                  threshold_mismatch=0.0, prnu=0.0, hot_pixel_fraction=0.0,
+                                  temporal_threshold_noise=jitter, reset_charge_loss=loss)
+
+
+def _intervals(spikes, k):
+    """The k-th inter-spike interval of every pixel (one per pixel: independent)."""
+    out = []
+    for x in range(spikes.shape[1]):
+        t = np.flatnonzero(spikes[:, x])
+        if t.size > k + 1:
+            out.append(t[k + 1] - t[k])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("reset", RESETS)
+@pytest.mark.parametrize("e, jitter, loss", [(200.7, 0.03, 0.0), (6.3, 0.1, 0.25)])
+def test_event_and_per_readout_samplers_have_the_same_law(reset, e, jitter, loss):
+    """Counts over 1500 readouts and the 3rd and 10th intervals of 1024 pixels
+    per level, two-sample KS tests and means (old sampler: per-readout Poisson)."""
+    levels = [0.03, 0.3, 1.2]  # q = 0.018 (a long interval), 0.18 and 0.72
+    w, n = 1024, 1500
+    sensor = ss.Sensor(height=len(levels), width=w, cfa=None, reset=reset,
+                       noise=_flat_noise(e, jitter, loss))
+    scene = ss.scenes.Static(flat_rows(levels, w))
+    new = ss.simulate(scene, sensor, n, seed=21).unpack()
+    old = ss.simulate(scene, sensor, n, seed=22, shot_sampler="readout").unpack()
+    for row in range(len(levels)):
+        cn, co = new[:, row].sum(axis=0), old[:, row].sum(axis=0)
+        sd = np.sqrt((cn.var() + co.var()) / w) + 1e-9
+        assert abs(cn.mean() - co.mean()) < 4.5 * sd, (row, cn.mean(), co.mean())
+        assert stats.ks_2samp(cn, co).pvalue > 1e-4, row
+        for k in (3, 10):
+            i_new, i_old = _intervals(new[:, row], k), _intervals(old[:, row], k)
+            assert stats.ks_2samp(i_new, i_old).pvalue > 1e-4, (row, k)
+
+
+def test_event_counts_and_intervals_follow_theory():
+    """Modulo, no fixed pattern: count mean N·q and variance N·q·κ² + E[frac]
+    (κ² = 1/E + σ_t²); interval mean 1/q and variance κ²/q² + E[frac(τ)(1 − frac(τ))]."""
+    e, jitter = 150.5, 0.02
+    noise = _flat_noise(e, jitter)
+    k2 = theory.cycle_cv2(noise)
+    assert k2 == pytest.approx(1 / e + jitter**2)
+    levels = [0.05, 0.4]
+    w, n = 2048, 3000
+    sensor = ss.Sensor(height=len(levels), width=w, cfa=None, noise=noise)
+    spikes = ss.simulate(ss.scenes.Static(flat_rows(levels, w)), sensor, n, seed=3).unpack()
+    for row, level in enumerate(levels):
+        q = 0.6 * float(np.float32(level))
+        c = spikes[:, row].sum(axis=0)
+        var_t = theory.count_variance(q, n, q * k2)
+        assert abs(c.mean() - n * q) < 4 * np.sqrt(var_t / w)
+        assert abs(c.var(ddof=1) / var_t - 1) < 4 * np.sqrt(2 / (w - 1))
+        isi = _intervals(spikes[:, row], 4).astype(np.float64)
+        v = theory.isi_var_theory(q, k2)
+        assert abs(isi.mean() - theory.isi_mean_theory(q)) < 4 * np.sqrt(v / isi.size)
+        assert abs(isi.var(ddof=1) / v - 1) < 5 * np.sqrt(2 / (isi.size - 1))
+
+
+@pytest.mark.parametrize("reset", RESETS)
+def test_event_sampler_is_chunk_invariant(reset):
+    noise = ss.noise.PhysicalNoise(electrons_per_threshold=20.5, reset_charge_loss=0.1,
+                                   temporal_threshold_noise=0.05, hot_pixel_fraction=0.01)
+    sensor = ss.Sensor(height=9, width=130, clock_hz=1000.0, reset=reset, noise=noise)
+    scene = _scene(np.random.default_rng(2), 9, 130, 2.0, 1000.0, 80)
+    whole = ss.simulate(scene, sensor, 80, seed=4, chunk_readouts=80).packed
+    for chunk in (1, 7):
+        np.testing.assert_array_equal(
+            ss.simulate(scene, sensor, 80, seed=4, chunk_readouts=chunk).packed, whole)
+
+
+def test_shot_sampler_is_validated_and_charge_noise_uses_the_per_readout_path():
+    sensor = ss.Sensor(height=2, width=8, cfa=None,
+                       noise=ss.noise.PhysicalNoise(charge_noise_electrons=20.0))
+    scene = ss.scenes.Static(np.full((2, 8), 0.5, np.float32))
+    with pytest.raises(SpikeSimValueError, match="shot_sampler"):
+        ss.simulate(scene, sensor, 4, shot_sampler="fast")
+    assert not sensor.noise.event_driven and ss.noise.PhysicalNoise().event_driven
+    a = ss.simulate(scene, sensor, 40, seed=1).packed
+    np.testing.assert_array_equal(a, ss.simulate(scene, sensor, 40, seed=1,
+                                                 shot_sampler="readout").packed)
