@@ -1,6 +1,6 @@
 """numba kernels of the integrate-and-fire sensor (no validation, no I/O).
 
-Model (DESIGN.md §2; Dong et al., AAAI 2024, eq. 1):
+Model (docs/model.md; Dong et al., AAAI 2024, eq. 1):
 
 * Radiance is piecewise linear in time between key frames.  The charge of
   readout ``n`` (the period ``[n, n+1)`` in readout units) is the exact

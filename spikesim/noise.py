@@ -1,4 +1,4 @@
-"""Noise models of the spike sensor (DESIGN.md §2).
+"""Noise models of the spike sensor (docs/model.md).
 
 Two families, each source optional; a source whose parameter is zero (or
 ``False``) draws no random numbers and adds no work to the kernel.

@@ -2,7 +2,7 @@
 
 Notation: ``q`` is the charge per readout in units of the pixel's own
 threshold (``q = r·(g·I + d)/t``, see :func:`spikesim.noise.fixed_pattern`),
-``w`` a window in readouts.  Derivations (DESIGN.md §2, Dong et al. AAAI 2024
+``w`` a window in readouts.  Derivations (docs/model.md, Dong et al. AAAI 2024
 eq. 1 for the pixel, eq. 5 for paper-mode noise):
 
 * **Rate.**  Modulo and subtract reset fire ``min(q, 1)`` spikes per readout
