@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from spikesim import rng
-from spikesim.reference import _log_positive_np, normal_np
+from spikesim.reference_rng import _log_positive_np, normal_np
 
 __all__ = ["EventReference"]
 

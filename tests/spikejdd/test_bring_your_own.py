@@ -84,8 +84,7 @@ def entry_point(tmp_path, monkeypatch):
 def checkpoint(data39, tmp_path_factory):
     """best.pt of a 2-step training run of a tiny SJDD-Net on the 39-readout data."""
     from spikejdd.train import TrainConfig, train
-
-    from ..sjdd.conftest import TINY
+    from tests.support.sjdd_helpers import TINY
 
     out = tmp_path_factory.mktemp("run")
     summary = train(TrainConfig.from_dict(dict(

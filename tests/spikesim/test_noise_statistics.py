@@ -16,7 +16,7 @@ from scipy import stats
 import spikesim as ss
 from spikesim import rng
 from spikesim._poisson import poisson
-from spikesim.reference import _f32_pair, normal_np
+from spikesim.reference_rng import _f32_pair, normal_np
 from tests.support.core_helpers import counts, flat_rows
 
 N = 4000  # readouts
