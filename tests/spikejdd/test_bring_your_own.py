@@ -236,14 +236,12 @@ def test_cli_one_line_errors(data39, tmp_path, capsys):
 
 
 def test_reconstruct_dat_capture_writes_side_by_side_panels(tmp_path, capsys):
-    from pathlib import Path
 
     import cv2
 
-    dat = Path(__file__).resolve().parents[2].parent / "shared/fixtures/peer-reds/" \
-        "203_part2_key_id151.dat"
-    if not dat.is_file():
-        dat = Path("/work/shared/fixtures/peer-reds/203_part2_key_id151.dat")
+    from tests.support.fixture_paths import PEER_REDS
+
+    dat = PEER_REDS / "203_part2_key_id151.dat"
     if not dat.is_file():
         pytest.skip("peer fixture not available")
     out = tmp_path / "frames"
