@@ -106,24 +106,12 @@ def check_positive(name: str, value: object, allow_none: bool = False) -> float 
     """Validate a finite, strictly positive number (``None`` allowed if ``allow_none``)."""
     if value is None and allow_none:
         return None
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        v = math.nan
-    if isinstance(value, bool) or not math.isfinite(v) or v <= 0:
-        raise bad_value(name, value, "a finite number > 0")
-    return v
+    return check_real(name, value, 0, low_open=True)
 
 
 def check_time(t: object) -> float:
-    """Validate a time in seconds (finite real)."""
-    try:
-        v = float(t)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise bad_value("t", t, "a finite time in seconds") from None
-    if not math.isfinite(v):
-        raise bad_value("t", t, "a finite time in seconds")
-    return v
+    """Validate a time ``t`` in seconds (a finite real number)."""
+    return check_real("t", t, unit="seconds")
 
 
 def check_size(size: object) -> tuple[int, int]:

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from spikesim import rng
-from spikesim._validate import is_real
+from spikesim._validate import check_real, is_real
 from spikesim.errors import bad_value
 
 __all__ = ["PaperNoise", "PhysicalNoise", "noise_from_dict", "FixedPattern", "fixed_pattern",
@@ -44,15 +44,6 @@ __all__ = ["PaperNoise", "PhysicalNoise", "noise_from_dict", "FixedPattern", "fi
 #: The kernel's noise parameters of an ideal sensor (see ``kernel_params``).
 NO_NOISE_PARAMS = {"paper_sg2": 0.0, "paper_sp2": 0.0, "paper_only": False, "jitter": 0.0,
                    "loss": 0.0}
-
-
-def _check_nonneg(name: str, value: float, upper: float = math.inf) -> float:
-    if not is_real(value):
-        raise bad_value(name, value, f"a real number in [0, {upper}]")
-    v = float(value)
-    if not (math.isfinite(v) and 0.0 <= v <= upper):
-        raise bad_value(name, value, f"a finite number in [0, {upper}]")
-    return v
 
 
 class _NoiseBase:
@@ -83,8 +74,8 @@ class PaperNoise(_NoiseBase):
     kind = "paper"
 
     def __post_init__(self):
-        object.__setattr__(self, "sigma_g", _check_nonneg("sigma_g", self.sigma_g, 255.0))
-        object.__setattr__(self, "sigma_p", _check_nonneg("sigma_p", self.sigma_p, 255.0))
+        object.__setattr__(self, "sigma_g", check_real("sigma_g", self.sigma_g, 0, 255.0))
+        object.__setattr__(self, "sigma_p", check_real("sigma_p", self.sigma_p, 0, 255.0))
 
     @property
     def per_readout(self) -> bool:
@@ -187,7 +178,7 @@ class PhysicalNoise(_NoiseBase):
             ("hot_pixel_dark_rel", 1e6),
             ("charge_noise_electrons", 1e9),
         ):
-            object.__setattr__(self, name, _check_nonneg(name, getattr(self, name), upper))
+            object.__setattr__(self, name, check_real(name, getattr(self, name), 0, upper))
         loss = self.reset_charge_loss
         if not (is_real(loss) and math.isfinite(float(loss)) and 0.0 <= float(loss) < 1.0):
             raise bad_value("reset_charge_loss", loss,

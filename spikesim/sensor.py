@@ -14,10 +14,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from dataclasses import dataclass
 
-from spikesim._validate import is_int, is_real
+from spikesim._validate import check_int, check_real
 from spikesim.cfa import normalize_cfa
 from spikesim.errors import bad_value
 from spikesim.noise import PaperNoise, PhysicalNoise, noise_from_dict
@@ -27,18 +26,6 @@ __all__ = ["Sensor", "RESET_MODES", "INIT_MODES", "list_presets"]
 RESET_MODES = ("modulo", "subtract", "zero")
 INIT_MODES = ("uniform", "zero")
 MAX_SIDE = 1 << 16
-
-
-def _positive(name: str, value, unit: str) -> float:
-    if not is_real(value) or not (math.isfinite(float(value)) and float(value) > 0):
-        raise bad_value(name, value, f"a finite number > 0 ({unit})")
-    return float(value)
-
-
-def _side(name: str, value) -> int:
-    if not is_int(value) or not 1 <= value <= MAX_SIDE:
-        raise bad_value(name, value, f"an integer number of pixels in [1, {MAX_SIDE}]")
-    return int(value)
 
 
 @dataclass(frozen=True)
@@ -83,16 +70,12 @@ class Sensor:
 
     def __post_init__(self):
         set_ = object.__setattr__
-        set_(self, "height", _side("height", self.height))
-        set_(self, "width", _side("width", self.width))
+        set_(self, "height", check_int("height", self.height, 1, MAX_SIDE, "pixels"))
+        set_(self, "width", check_int("width", self.width, 1, MAX_SIDE, "pixels"))
         set_(self, "cfa", normalize_cfa(self.cfa))
-        set_(self, "clock_hz", _positive("clock_hz", self.clock_hz, "Hz"))
-        set_(self, "threshold", _positive("threshold", self.threshold, "charge units"))
-        set_(
-            self,
-            "full_scale_rate",
-            _positive("full_scale_rate", self.full_scale_rate, "spikes per readout at radiance 1"),
-        )
+        for name, unit in (("clock_hz", "Hz"), ("threshold", "charge units"),
+                           ("full_scale_rate", "spikes per readout at radiance 1")):
+            set_(self, name, check_real(name, getattr(self, name), 0, low_open=True, unit=unit))
         if self.reset not in RESET_MODES:
             raise bad_value("reset", self.reset, f"one of {RESET_MODES}")
         if self.init not in INIT_MODES:

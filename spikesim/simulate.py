@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from spikesim import _kernels, _mosaic, rng
+from spikesim._validate import check_int
 from spikesim._version import __version__
 from spikesim.bits import packed_width
 from spikesim.cfa import LUMA_WEIGHTS, channel_index
@@ -41,16 +42,6 @@ if sys.byteorder != "little":  # pragma: no cover - every supported target is li
 _SHOT_SAMPLERS = ("event", "readout")
 _RESET_CODES = {"modulo": _kernels.RESET_MODULO, "subtract": _kernels.RESET_SUBTRACT,
                 "zero": _kernels.RESET_ZERO}
-
-
-def _check_int(name: str, value, low: int, high: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise bad_value(name, value, f"an integer >= {low}")
-    v = int(value)
-    if v < low or (high is not None and v > high):
-        rng_text = f"an integer in [{low}, {high}]" if high is not None else f"an integer >= {low}"
-        raise bad_value(name, value, rng_text)
-    return v
 
 
 class SimulationRun:
@@ -79,22 +70,22 @@ class SimulationRun:
                             f"the sensor size (height, width) = {sensor.shape}")
         self.scene = scene
         self.sensor = sensor
-        self.n_readouts = _check_int("n_readouts", n_readouts, 1)
+        self.n_readouts = check_int("n_readouts", n_readouts, 1)
         check_key_frames(scene, self.n_readouts / sensor.clock_hz)
-        self.seed = _check_int("seed", seed, 0, 2**64 - 1)
+        self.seed = check_int("seed", seed, 0, 2**64 - 1)
         self.clean_twin = bool(clean_twin)
         if gt_readouts is None:
             gt = [self.n_readouts // 2]
         elif isinstance(gt_readouts, str) and gt_readouts == "all":
             gt = list(range(self.n_readouts))
         else:
-            gt = [_check_int("gt_readouts[i]", g, 0, self.n_readouts - 1) for g in gt_readouts]
+            gt = [check_int("gt_readouts[i]", g, 0, self.n_readouts - 1) for g in gt_readouts]
         self.gt_readouts = np.array(sorted(set(gt)), dtype=np.int64)
         nbytes = packed_width(sensor.width)
         if chunk_readouts is None:
             per_readout = sensor.height * nbytes * (2 if self.clean_twin else 1)
             chunk_readouts = max(16, min(4096, CHUNK_OUTPUT_BYTES // max(per_readout, 1)))
-        self.chunk_readouts = _check_int("chunk_readouts", chunk_readouts, 1)
+        self.chunk_readouts = check_int("chunk_readouts", chunk_readouts, 1)
         self.progress = bool(progress)
         if shot_sampler not in _SHOT_SAMPLERS:
             raise bad_value("shot_sampler", shot_sampler, f"one of {_SHOT_SAMPLERS}")
