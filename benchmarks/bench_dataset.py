@@ -155,7 +155,7 @@ def compare(baseline: Path, repeats: int, count: int, out: Path) -> None:
          "\n".join(lines))
 
 
-def realistic(repeats: int, count: int, out: Path) -> None:
+def realistic(repeats: int, count: int, out: Path, videos: int = 2) -> None:
     """720p REDS-shaped video -> 256x256 clips with paper noise, serial and 2 workers."""
     import statistics
 
@@ -163,7 +163,7 @@ def realistic(repeats: int, count: int, out: Path) -> None:
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="spikesim-bench-reds-") as tmp:
-        root = make_reds(Path(tmp) / "REDS")
+        root = make_reds(Path(tmp) / "REDS", videos=videos)
         manifest = parse_manifest(realistic_manifest(root, count))
         # one untimed build loads the kernels and fills the OS file cache
         build_dataset(manifest, Path(tmp) / "warm", limit=2, progress=False)
@@ -199,10 +199,10 @@ def realistic(repeats: int, count: int, out: Path) -> None:
                 zip(rows[0::2], rows[1::2], strict=True)]
     result = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, load average "
                          f"{LOAD_AT_START:.1f} at the start (other jobs share the cores)",
-              "sequences": 2 * count, "rows": rows, "summary": summary,
+              "videos": videos, "sequences": videos * count, "rows": rows, "summary": summary,
               "speedup_2_workers": speedups,
               "command": f"python benchmarks/bench_dataset.py --realistic --repeats {repeats} "
-                         f"--count {count}"}
+                         f"--count {count}" + (f" --videos {videos}" if videos != 2 else "")}
     save(out, "dataset_realistic", result, realistic_markdown(result))
 
 
@@ -218,8 +218,9 @@ def realistic_markdown(r) -> str:
     lines = [
         "# Dataset generation, realistic case: 720p video -> 256x256 clips, paper noise",
         "",
-        f"REDS-shaped folder of 2 videos (1280x720 PNG, 24 fps, 12 frames, a texture panning "
-        f"12 and 6 px per frame); {r['sequences']} clips ({r['sequences'] // 2} per video), "
+        f"REDS-shaped folder of {r.get('videos', 2)} videos (1280x720 PNG, 24 fps, 12 frames, "
+        f"a texture panning 12 or 6 px per frame); {r['sequences']} clips "
+        f"({r['sequences'] // r.get('videos', 2)} per video), "
         "random 256x256 crops and start times, GN or GPN noise, 3 windows of 39 readouts "
         "(117 readouts at 20 kHz, 7.7e6 pixel-readouts per clip).",
         f"Machine: {r['machine']}. Command: `{r['command']}`. Medians over the repeats, range "
@@ -257,6 +258,7 @@ def main(argv=None):
                          "workers (writes dataset_realistic.{json,md})")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--count", type=int, default=12, help="clips per video (--realistic)")
+    ap.add_argument("--videos", type=int, default=2, help="videos in the folder (--realistic)")
     ap.add_argument("--baseline", default=None, metavar="DIR",
                     help="with --realistic: a folder holding another spikesim package to "
                          "compare with, build by build in fresh processes (writes "
@@ -274,7 +276,7 @@ def main(argv=None):
         compare(Path(args.baseline), args.repeats, args.count, Path(args.out))
         return
     if args.realistic:
-        realistic(args.repeats, args.count, Path(args.out))
+        realistic(args.repeats, args.count, Path(args.out), args.videos)
         return
     manifest = load_manifest(args.manifest)
     configs = [("serial", {"workers": 1}), ("2 local processes", {"workers": 2}),

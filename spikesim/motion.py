@@ -43,7 +43,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
 from spikesim._flow_splat import splat_flow
 from spikesim.errors import SpikeSimValueError, bad_value
@@ -247,6 +246,8 @@ def _flow_at(pair: PairMotion, tau: float, occlusion: bool) -> np.ndarray:
     q = vsum / np.where(filled, wsum, 1.0)[..., None]
     u = np.where(filled[..., None], q, 0.0).astype(np.float32)
     if not filled.all():
+        from scipy import ndimage  # only where the splatted flow has holes
+
         idx = ndimage.distance_transform_edt(~filled, return_distances=False, return_indices=True)
         u = u[idx[0], idx[1]]
     return u

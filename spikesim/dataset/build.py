@@ -353,16 +353,30 @@ def _write_json(path: Path, data) -> None:
         Path(tmp).write_text(json.dumps(data, indent=1))
 
 
-def _parallel_calibration(tasks: list[dict], workers: int, dask_local: int | None) -> tuple:
-    """Run ``tasks`` on the executor a build would start; returns (start-up seconds,
-    seconds of work per task in parallel, results).
+def _warm_up(task: dict, out_dir: str, threads: int, barrier=None) -> int:
+    """One untimed sequence in this worker (imports, kernel loading, flow and codec
+    set-up); with a ``barrier``, wait until every worker has made its own, so that
+    no worker takes two warm-ups while another is still starting."""
+    run_task(task, f"{out_dir}/warm-{os.getpid()}", threads)
+    if barrier is not None:
+        barrier.wait(timeout=600)
+    return os.getpid()
 
-    Start-up is the time from asking for the workers until each has made its
-    first sequence (imports, kernel loading, flow and codec set-up), less one
-    ordinary sequence; the work is then timed with all workers busy at once, so
-    contention for cores, memory and disk is in the figure.
+
+def _parallel_calibration(tasks: list[dict], workers: int, warm: dict,
+                          dask_local: int | None) -> tuple:
+    """Run ``tasks`` on the executor a build would start; returns
+    (start-up seconds, seconds of work per task in parallel, results).
+
+    Start-up is the time from asking for the workers until each has made one
+    warm-up sequence of its own (imports, kernel loading, flow and codec
+    set-up), less one ordinary sequence; the tasks are then timed with all
+    workers busy at once, so contention for cores, memory and disk is in the
+    figure.
     """
     threads = max(1, (os.cpu_count() or 1) // workers)
+    # a barrier for the pool's warm-ups (its manager process is no part of a build's start-up)
+    manager = mp.get_context("spawn").Manager() if dask_local is None else None
     with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
         t0 = time.perf_counter()
         if dask_local is not None:
@@ -371,6 +385,7 @@ def _parallel_calibration(tasks: list[dict], workers: int, dask_local: int | Non
             cluster = LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True,
                                    dashboard_address=None)
             client = Client(cluster)
+            client.run(_warm_up, warm, tmp, 1)  # on every worker at once
             submit = lambda fn, *a: client.submit(fn, *a, pure=False)  # noqa: E731
             threads = 1
 
@@ -379,19 +394,23 @@ def _parallel_calibration(tasks: list[dict], workers: int, dask_local: int | Non
                 cluster.close()
         else:
             pool = _new_pool(workers)  # as the build's: workers die with this process
-            submit = pool.submit
             env = contextlib.ExitStack()  # the workers start on the first submits below
             env.enter_context(worker_thread_env(threads))
+            barrier = manager.Barrier(workers)
+            submit = pool.submit
 
             def close():
                 pool.shutdown()
+                manager.shutdown()
                 env.close()
+
+            try:
+                for f in [submit(_warm_up, warm, tmp, threads, barrier) for _ in range(workers)]:
+                    f.result()
+            except BaseException:
+                close()
+                raise
         try:
-            # each worker makes one sequence first (imports, kernels, flow and codec
-            # set-up: what a real worker pays on its first task), then all are timed
-            for f in [submit(run_task, tasks[0], f"{tmp}/warm{k}", threads)
-                      for k in range(workers)]:
-                f.result()
             ready = time.perf_counter() - t0
             t1 = time.perf_counter()
             recs = [f.result() for f in [submit(run_task, t, tmp, threads) for t in tasks]]
@@ -402,20 +421,66 @@ def _parallel_calibration(tasks: list[dict], workers: int, dask_local: int | Non
     return max(ready - per_task * workers, 0.0), per_task, recs
 
 
+def _spread(items: list, n: int) -> list:
+    """``n`` items (at most all) spread evenly over ``items``, in order."""
+    if not items or n <= 0:
+        return []
+    n = min(n, len(items))
+    return [items[round(i * (len(items) - 1) / max(n - 1, 1))] for i in range(n)]
+
+
+def _task_frames(task: dict, fps_of: dict) -> set:
+    """(video, frame index) of every frame a video task reads; empty for other tasks."""
+    spec = task["scene"]
+    info = fps_of.get((spec.get("path"), spec.get("sequence")))
+    if spec.get("kind") != "video" or info is None:
+        return set()
+    fps, n_frames = info
+    start = float(spec.get("start_s", 0.0))
+    stop = start + task["n_readouts"] / float(task["sensor"]["clock_hz"])
+    first = min(max(math.floor(start * fps), 0), n_frames - 1)
+    last = min(max(math.ceil(stop * fps), first), n_frames - 1)
+    key = (spec.get("path"), spec.get("sequence"))
+    return {(key, i) for i in range(first, last + 1)}
+
+
+def _frames_to_decode(tasks: list[dict], manifest: Manifest, lanes: int, dask: bool) -> int:
+    """Video frames the build decodes: each once per process that needs it, with a
+    serial build's clips of a video sharing its frames, a pool's within a batch
+    (``batches.py``), and a Dask build's none (one task at a time, anywhere)."""
+    fps_of = {}
+    for src in manifest.sources:
+        for v in src.videos:
+            fps_of[(src.path, v.name if src.kind != "video" else None)] = (v.fps, v.n_frames)
+    if not fps_of:
+        return 0
+    if dask:
+        groups = [[t] for t in tasks]
+    elif lanes > 1:
+        groups = pool_batches(tasks, lanes)
+    else:
+        groups = [tasks]
+    return sum(len(set().union(*(_task_frames(t, fps_of) for t in g))) for g in groups if g)
+
+
 def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: int = 3,
                      limit: int | None = None, dask_local: int | None = None,
                      out_dir: str | os.PathLike | None = None) -> dict:
     """The plan of a build with disk and time estimates from a short calibration run.
 
     Sequences spread over the plan are generated into a temporary folder the
-    way the build will make them: serially in this process after one untimed
-    warm-up (up to ``calibration_tasks``), or on the same executor the build
-    starts (``workers`` spawned processes or a local Dask cluster, at least two
-    sequences per worker), whose start-up (each worker importing spikesim and
-    loading its kernels) is timed too.  Bytes and seconds are extrapolated to
-    the sequences still to make (those already valid in ``out_dir`` are
-    skipped, as a build would): time = start-up + rounds of ``workers``
-    sequences in parallel.
+    way the build will make them: ``calibration_tasks`` of them serially in
+    this process after one untimed warm-up, or, on the executor the build
+    starts (``workers`` spawned processes or a local Dask cluster), at least
+    two per worker after every worker has made one untimed warm-up sequence;
+    that start-up (each worker importing spikesim and loading its kernels) is
+    timed too.  Bytes and seconds are extrapolated to the sequences still to
+    make (those already valid in ``out_dir`` are skipped, as a build would):
+    time = start-up + rounds of ``workers`` sequences in parallel, with video
+    decoding counted per frame rather than per clip: the calibration measures
+    seconds per decoded frame, and the build decodes each frame once per
+    process that needs it (a serial build's clips of one video share their
+    frames, a pool's share them within a batch), ``frames_to_decode`` in all.
     """
 
     workers = _check_workers(workers)
@@ -428,32 +493,31 @@ def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: in
         tasks = [t for t in tasks if not validate_existing(Path(out_dir) / t["file"], t)]
     px = int(manifest.size[0] * manifest.size[1])
     total_px = px * sum(t["n_readouts"] for t in tasks)
-    picks = sorted({round(i * (len(tasks) - 1) / max(calibration_tasks - 1, 1))
-                    for i in range(min(calibration_tasks, len(tasks)))})
-    bytes_per_px = seconds_per_task = 0.0
+    bytes_per_px = seconds_per_task = decode_s = 0.0
     recs, startup_s, compile_s = [], 0.0, 0.0
+    cal = _spread(tasks, calibration_tasks)
     lanes = min(parallel, len(tasks)) if len(tasks) > 1 else 1
-    if picks and lanes > 1:
+    if tasks and lanes > 1:
         # one sequence here first: a cold numba cache is compiled and written once, so the
         # workers below load kernels as a real build's do (compiling is a one-off cost)
         with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
             t0 = time.perf_counter()
-            run_task(tasks[picks[0]], tmp)
+            run_task(tasks[0], tmp)
             if compiled_in_this_process():
                 compile_s = time.perf_counter() - t0
-        # as many calibration tasks as keep every worker busy twice
-        n_cal = min(len(tasks), max(calibration_tasks, 2 * lanes))
-        cal = [tasks[round(i * (len(tasks) - 1) / max(n_cal - 1, 1))] for i in range(n_cal)]
-        picks = [tasks.index(t) for t in cal]
-        startup_s, per_task, recs = _parallel_calibration(cal, lanes, dask_local)
+        cal = _spread(tasks, max(calibration_tasks, 2 * lanes))  # every worker busy twice
+        startup_s, per_task, recs = _parallel_calibration(cal, lanes, tasks[0], dask_local)
         seconds_per_task = per_task * lanes  # one lane's time per task
-    elif picks:
+    elif tasks:
         with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
             t0 = time.perf_counter()
             frame_cache.clear()
-            run_task(tasks[picks[0]], tmp + "/warm")  # loads kernels, fills OS caches
+            run_task(cal[0], tmp + "/warm")  # loads kernels, fills OS caches
             warm_s = time.perf_counter() - t0
-            recs = [run_task(tasks[i], tmp) for i in picks]
+            recs = []
+            for t in cal:
+                frame_cache.clear()  # each decodes its frames: counted and timed below
+                recs.append(run_task(t, tmp))
             frame_cache.clear()
     ok = [r for r in recs if r["status"] == "done"]
     if ok:
@@ -466,7 +530,15 @@ def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: in
             startup_s = max(warm_s - seconds_per_task, 0.0)
             if compiled_in_this_process():
                 compile_s, startup_s = startup_s, 0.0
+        decoded = sum(r.get("frames_decoded", 0) for r in ok)
+        if decoded:
+            # decoding is paid once per frame and process, not per clip: take it out of
+            # the time per task and add it back for the frames the build will decode
+            decode_s = sum(r["seconds"]["scene"] for r in ok) / decoded
+            seconds_per_task -= decode_s * decoded / len(ok)
     rounds = math.ceil(len(tasks) / max(lanes, 1))
+    to_decode = _frames_to_decode(tasks, manifest, lanes, dask_local is not None)
+    seconds = startup_s + rounds * seconds_per_task + decode_s * to_decode / max(lanes, 1)
     by_split: dict[str, int] = {}
     for t in all_tasks:
         by_split[t["split"]] = by_split.get(t["split"], 0) + 1
@@ -479,12 +551,13 @@ def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: in
         "size": list(manifest.size),
         "px_readouts": total_px,
         "estimated_bytes": int(math.ceil(bytes_per_px * total_px)),
-        "estimated_seconds": startup_s + rounds * seconds_per_task if tasks else 0.0,
-        "seconds_per_sequence": seconds_per_task,
+        "estimated_seconds": seconds if tasks else 0.0,
+        "seconds_per_sequence": (seconds - startup_s) / rounds if tasks else 0.0,
+        "frames_to_decode": to_decode,
         "startup_seconds": startup_s,
         "compile_seconds": compile_s,
         "executor": (f"dask LocalCluster ({dask_local} workers)" if dask_local is not None
                      else f"{workers} local processes" if workers > 1 else "serial"),
-        "calibrated_on": [tasks[i]["file"] for i in picks],
+        "calibrated_on": [t["file"] for t in cal],
         "calibration_failures": [r["error"] for r in recs if r["status"] != "done"],
     }

@@ -22,8 +22,10 @@ class TaskRecord:
 
     ``status`` is ``"done"``, ``"skipped"`` or ``"failed"`` (``error`` then says
     why); ``bytes`` is the file size, ``px_readouts`` the pixel-readouts
-    simulated, ``seconds`` the time per stage (:data:`STAGES`), ``clip`` the
-    clip record of a video sequence.
+    simulated, ``seconds`` the time per stage (:data:`STAGES`),
+    ``frames_decoded`` the video frames this process decoded for it (those
+    another clip had decoded already are not counted), ``clip`` the clip
+    record of a video sequence.
     """
 
     id: str
@@ -34,6 +36,7 @@ class TaskRecord:
     error: str | None = None
     px_readouts: int = 0
     seconds: dict = field(default_factory=lambda: dict.fromkeys(STAGES, 0.0))
+    frames_decoded: int = 0
     clip: dict | None = None
 
     @classmethod

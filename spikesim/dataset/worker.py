@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from spikesim.dataset.record import TaskRecord
+from spikesim.scenes import frame_cache
 
 __all__ = ["run_task", "run_batch", "validate_existing", "build_scene"]
 
@@ -131,6 +132,7 @@ def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
         cv2.setNumThreads(max(1, int(threads)))  # decoding, flow and warping: no oversubscription
     path = Path(out_dir) / task["file"]
     t_start = time.perf_counter()
+    decoded_before = frame_cache.decodes()
     record = TaskRecord.of(task)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -170,6 +172,7 @@ def run_task(task: dict, out_dir: str, threads: int | None = None) -> dict:
     except Exception as exc:  # noqa: BLE001 - reported per sequence, others go on
         record.status, record.error = "failed", f"{type(exc).__name__}: {exc}"
     record.seconds["total"] = time.perf_counter() - t_start
+    record.frames_decoded = frame_cache.decodes() - decoded_before
     return record.to_dict()
 
 

@@ -26,7 +26,6 @@ from __future__ import annotations
 from abc import abstractmethod
 
 import numpy as np
-from scipy import ndimage
 
 from spikesim._validate import check_positive, check_size, check_time
 from spikesim.scenes.base import Scene
@@ -44,6 +43,8 @@ class SplineTexture:
     """
 
     def __init__(self, image: np.ndarray, mirror: bool = True):
+        from scipy import ndimage  # here, not at import: a worker making video clips never needs it
+
         img = np.asarray(image, dtype=np.float64)
         self.height, self.width = img.shape[:2]
         self.mirror = mirror
@@ -57,6 +58,8 @@ class SplineTexture:
 
     def sample(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """Radiance at (rows, cols) (same shape arrays) → shape + (3,) float32."""
+        from scipy import ndimage
+
         coords = np.stack([rows, cols])
         out = np.empty(rows.shape + (3,), np.float32)
         for c in range(3):

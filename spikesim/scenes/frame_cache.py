@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["CACHE_BYTES", "read_image", "clear", "cached_bytes"]
+__all__ = ["CACHE_BYTES", "read_image", "clear", "cached_bytes", "decodes"]
 
 #: Largest total size of the decoded frames kept per process (about 45 720p RGB frames).
 CACHE_BYTES = 128 * 2**20
@@ -25,6 +25,7 @@ CACHE_BYTES = 128 * 2**20
 _lock = threading.Lock()
 _images: OrderedDict[tuple, np.ndarray] = OrderedDict()
 _total = 0
+_decodes = 0
 
 
 def read_image(path: str, decode: Callable[[str], np.ndarray]) -> np.ndarray:
@@ -37,8 +38,10 @@ def read_image(path: str, decode: Callable[[str], np.ndarray]) -> np.ndarray:
         if hit is not None:
             _images.move_to_end(key)
             return hit
+    global _decodes
     img = decode(path)
     img.setflags(write=False)
+    _decodes += 1
     if img.nbytes > CACHE_BYTES:
         return img
     with _lock:
@@ -49,6 +52,11 @@ def read_image(path: str, decode: Callable[[str], np.ndarray]) -> np.ndarray:
             _, old = _images.popitem(last=False)
             _total -= old.nbytes
     return img
+
+
+def decodes() -> int:
+    """Files this process has decoded so far (cache misses; never reset)."""
+    return _decodes
 
 
 def cached_bytes() -> int:

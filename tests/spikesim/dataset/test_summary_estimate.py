@@ -45,3 +45,28 @@ def test_dry_run_counts_startup_and_skips_what_is_built(tmp_path):
     build_dataset(_manifest(count=3), tmp_path, progress=False)
     rest = estimate_dataset(m, out_dir=tmp_path, calibration_tasks=1)
     assert rest["sequences"] == 4 and rest["to_make"] == 1
+
+
+def test_dry_run_counts_video_decoding_per_frame_not_per_clip(tmp_path):
+    """The dry run's model of frame decoding matches what a serial build decodes:
+    every frame once, however many clips read it; a pool decodes at most its model."""
+    from spikesim.dataset.build import _frames_to_decode
+    from spikesim.dataset.plan import plan_tasks
+    from tests.support.dataset_helpers import reds_root
+
+    root = reds_root(tmp_path / "reds", n_frames=6, size=(48, 64))
+    m = parse_manifest({
+        "dataset": {"name": "v", "seed": 1, "size": [32, 32], "window": 39,
+                    "samples_per_sequence": 3},
+        "sources": [{"kind": "reds", "path": str(root), "count": 8,
+                     "crop": {"size": [32, 32], "position": "random"}}]})
+    tasks = [t.to_dict() for t in plan_tasks(m)]
+    serial = build_dataset(m, tmp_path / "serial", progress=False)
+    decoded = sum(r["frames_decoded"] for r in serial.records)
+    assert decoded == _frames_to_decode(tasks, m, 1, False)
+    # eight clips of 117 readouts at 20 kHz read 2 frames each: fewer than 16 decodes
+    assert 2 <= decoded < 16 <= _frames_to_decode(tasks, m, 1, True)
+    pool = build_dataset(m, tmp_path / "pool", workers=2, progress=False)
+    assert sum(r["frames_decoded"] for r in pool.records) <= _frames_to_decode(tasks, m, 2, False)
+    est = estimate_dataset(m, calibration_tasks=2)
+    assert est["frames_to_decode"] == decoded
