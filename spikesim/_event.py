@@ -26,8 +26,9 @@ drops a whole threshold (the count at the readout's end is drawn exactly,
 threshold is ``θ(1 + ε)``, ``ε = σ_t·z`` clipped to ±½ (the per-readout model
 moves the charge by −ε), ``E·ε`` electrons more.  So the work is one Gamma
 variate (Marsaglia–Tsang, or a product of uniforms for small shapes) and
-one normal per spike, a second, small Gamma (modulo with ε > 0) or a Poisson
-count only where needed.
+one normal per spike, a second, small Gamma (modulo with ε > 0 where a drop
+is possible at all, see :func:`drop_negligible`) or a Poisson count only
+where needed.
 
 Every draw is keyed by (seed, source, pixel, cycle): source
 ``STREAM_WAIT`` for the Gamma variate of cycle ``c``, ``STREAM_RESIDUAL``
@@ -116,6 +117,22 @@ def cycle_wait(need, key, counter, pix):
     return gamma_integer(np.ceil(need), pixel_bits(readout_key(key, np.uint64(counter)), pix))
 
 
+#: A modulo drop needs ``h0`` electrons within the operational time ``L`` left in
+#: the readout after a crossing.  Chernoff's bound ``P(Poisson(L) ≥ h0) ≤
+#: exp(h0·(1 − x + ln x))``, ``x = L/h0``, is below 2⁻⁶⁴ (smaller than any
+#: probability a 64-bit draw can resolve) for ``x ≤ ½`` and ``h0 ≥ 230``
+#: (``230·(½ − ln 2) = −44.4 < ln 2⁻⁶⁴ = −44.36``).
+DROP_FREE_FRACTION = 0.5
+DROP_FREE_ELECTRONS = 230.0
+
+
+@njit(inline="always", **_opts)
+def drop_negligible(left, h0):
+    """True when a modulo drop (``h0`` electrons within operational time
+    ``left``) has probability below 2⁻⁶⁴, so it need not be drawn."""
+    return h0 >= DROP_FREE_ELECTRONS and left <= DROP_FREE_FRACTION * h0
+
+
 @njit(**_opts)
 def fire_cycle(wait, need, cycle, e, reset, jitter, key_wait, key_resid, key_refill, key_jitter,
                pix):
@@ -135,9 +152,13 @@ def fire_cycle(wait, need, cycle, e, reset, jitter, key_wait, key_resid, key_ref
       the wait may stay ≤ 0 (the backlog fires at the next readouts);
     * modulo drops a whole threshold when the charge at the readout's end is
       ≥ 2θ, i.e. ≥ ``h0 = ⌈lead + E⌉`` electrons came after the crossing in
-      this readout.  The arrival of electron ``h = min(h0, ⌈d⌉)`` is drawn
-      (``key_wait``); after the readout's end, nothing was dropped and the
-      next crossing is that arrival plus ``Gamma(⌈d⌉ − h)`` (``key_resid``);
+      this readout.  Where that has probability below 2⁻⁶⁴
+      (:func:`drop_negligible`: the usual case, a pixel filling less than half
+      a threshold per readout with ≥ 230 electrons per threshold), the next
+      crossing is drawn at once as for subtract.  Else the arrival of electron
+      ``h = min(h0, ⌈d⌉)`` is drawn (``key_wait``); after the readout's end,
+      nothing was dropped and the next crossing is that arrival plus
+      ``Gamma(⌈d⌉ − h)`` (``key_resid``);
       else the count at the readout's end is ``h + Poisson(rest)``
       (``key_resid``), the charge ``1 + x/E`` with ``x = h + Poisson − lead``
       is reset to ``x mod E`` exactly, and the next wait is drawn from the
@@ -160,7 +181,8 @@ def fire_cycle(wait, need, cycle, e, reset, jitter, key_wait, key_resid, key_ref
         w = wait + cycle_wait(hd, key_wait, k1, pix)
         return max(w, -BACKLOG_MAX * e), d, c1
     h0 = np.ceil(lead + e)
-    h = min(h0, hd)
+    # drawing the next crossing at once (one variate) is exact when no drop can happen
+    h = hd if drop_negligible(-wait, h0) else min(h0, hd)
     g = cycle_wait(h, key_wait, k1, pix)
     if wait + g > 0.0:  # fewer than h electrons after the crossing in this readout
         if hd > h:

@@ -174,7 +174,10 @@ class EventReference:
             self.need[p], self.wait[p] = d, max(w, -_BACKLOG_MAX * e)
             return
         h0 = float(math.ceil(lead + e))  # this many after the crossing: charge ≥ 2θ at the end
-        h = min(h0, hd)
+        # Chernoff: P(Poisson(L) >= h0) <= exp(h0 (1 - x + ln x)), x = L / h0, is below
+        # 2**-64 for x <= 1/2 and h0 >= 230; then no drop is drawn, only the next crossing
+        no_drop = h0 >= 230.0 and -wait <= 0.5 * h0
+        h = hd if no_drop else min(h0, hd)
         g = self._gamma(h, self.key_wait, c + 1, p)
         if wait + g > 0.0:
             if hd > h:

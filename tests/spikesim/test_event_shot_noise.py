@@ -50,6 +50,19 @@ def test_event_sampler_matches_reference(reset, e, bright, loss, jitter):
     assert 0.02 < ss.bits.unpack(got, 70).mean() < 0.98
 
 
+def test_negligible_drop_rule_keeps_below_two_to_the_minus_64():
+    """Where :func:`drop_negligible` skips a modulo drop, the exact Poisson tail
+    P(Poisson(L) >= h0) is below 2**-64; just outside the rule it is not always."""
+    for h0 in (230.0, 231.0, 500.0, 1000.0, 5000.0):
+        for frac in (0.01, 0.25, 0.5):
+            left = frac * h0
+            assert _event.drop_negligible(left, h0)
+            assert stats.poisson.logsf(h0 - 1, left) < -64 * np.log(2), (h0, frac)
+    assert not _event.drop_negligible(0.51 * 1000.0, 1000.0)
+    assert not _event.drop_negligible(0.5 * 229.0, 229.0)
+    assert stats.poisson.logsf(99.0, 60.0) > -64 * np.log(2)  # x = 0.6, h0 = 100: not negligible
+
+
 def test_reset_codes_and_backlog_limit_agree_with_the_kernel():
     assert (_event.MODULO, _event.SUBTRACT, _event.ZERO) == (
         _kernels.RESET_MODULO, _kernels.RESET_SUBTRACT, _kernels.RESET_ZERO)
@@ -91,7 +104,8 @@ def _intervals(spikes, k):
 
 
 @pytest.mark.parametrize("reset", RESETS)
-@pytest.mark.parametrize("e, jitter, loss", [(200.7, 0.03, 0.0), (6.3, 0.1, 0.25)])
+@pytest.mark.parametrize("e, jitter, loss", [(200.7, 0.03, 0.0), (6.3, 0.1, 0.25),
+                                              (1000.0, 0.03, 0.0)])  # drops skipped where negligible
 def test_event_and_per_readout_samplers_have_the_same_law(reset, e, jitter, loss):
     """Counts over 1500 readouts and the 3rd and 10th intervals of 1024 pixels
     per level, two-sample KS tests and means (old sampler: per-readout Poisson)."""
