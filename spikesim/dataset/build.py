@@ -445,11 +445,14 @@ def _task_frames(task: dict, fps_of: dict) -> set:
 
 
 def _frames_to_decode(tasks: list[dict], manifest: Manifest, lanes: int, dask: bool) -> int:
-    """Video frames the build decodes: each once per process that needs it, with a
+    """Image files of video frames the build decodes (frame folders; a video file's
+    decoding stays in the time per task): each once per process that needs it, with a
     serial build's clips of a video sharing its frames, a pool's within a batch
     (``batches.py``), and a Dask build's none (one task at a time, anywhere)."""
     fps_of = {}
     for src in manifest.sources:
+        if src.kind == "video" and Path(src.path).is_file():
+            continue  # a video file is decoded by its container reader, not per frame file
         for v in src.videos:
             fps_of[(src.path, v.name if src.kind != "video" else None)] = (v.fps, v.n_frames)
     if not fps_of:

@@ -105,7 +105,7 @@ def _intervals(spikes, k):
 
 @pytest.mark.parametrize("reset", RESETS)
 @pytest.mark.parametrize("e, jitter, loss", [(200.7, 0.03, 0.0), (6.3, 0.1, 0.25),
-                                              (1000.0, 0.03, 0.0)])  # drops skipped where negligible
+                                              (1000.0, 0.03, 0.0)])  # E=1000: negligible drops
 def test_event_and_per_readout_samplers_have_the_same_law(reset, e, jitter, loss):
     """Counts over 1500 readouts and the 3rd and 10th intervals of 1024 pixels
     per level, two-sample KS tests and means (old sampler: per-readout Poisson)."""

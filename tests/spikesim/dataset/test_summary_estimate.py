@@ -70,3 +70,31 @@ def test_dry_run_counts_video_decoding_per_frame_not_per_clip(tmp_path):
     assert sum(r["frames_decoded"] for r in pool.records) <= _frames_to_decode(tasks, m, 2, False)
     est = estimate_dataset(m, calibration_tasks=2)
     assert est["frames_to_decode"] == decoded
+
+
+def test_dry_run_counts_no_frame_files_for_a_video_file(tmp_path):
+    """A video file is decoded by its container reader (no frame files, no frame cache):
+    the model counts nothing and the build decodes no frame files."""
+    import cv2
+    import numpy as np
+
+    from spikesim.dataset.build import _frames_to_decode
+    from spikesim.dataset.plan import plan_tasks
+
+    big = cv2.GaussianBlur((np.random.default_rng(0).random((64, 200, 3)) * 255)
+                           .astype(np.uint8), (0, 0), 3)
+    writer = cv2.VideoWriter(str(tmp_path / "clip.avi"), cv2.VideoWriter_fourcc(*"MJPG"),
+                             25.0, (96, 64))
+    for i in range(8):
+        writer.write(np.ascontiguousarray(big[:, 8 * i: 8 * i + 96]))
+    writer.release()
+    m = parse_manifest({
+        "dataset": {"name": "f", "seed": 1, "size": [32, 32], "window": 39,
+                    "samples_per_sequence": 2},
+        "sources": [{"kind": "video", "path": str(tmp_path / "clip.avi"), "count": 3,
+                     "crop": {"size": [32, 32], "position": "random"}}]})
+    tasks = [t.to_dict() for t in plan_tasks(m)]
+    built = build_dataset(m, tmp_path / "out", progress=False)
+    assert built.done == 3
+    assert sum(r["frames_decoded"] for r in built.records) == 0
+    assert _frames_to_decode(tasks, m, 1, False) == 0
