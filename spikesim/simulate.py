@@ -145,21 +145,25 @@ class SimulationRun:
             n1 = n0 + max(1, (n1 - n0) // 2)
 
     def _fill_key_frames(self, times: np.ndarray, buffer: np.ndarray, cache: dict,
-                         max_keys: int) -> tuple[np.ndarray, dict]:
+                         max_keys: int, last: bool = False) -> tuple[np.ndarray, dict]:
         """The chunk's key frames through the CFA into ``buffer`` (grown if
         needed); a frame shared with the previous chunk comes from ``cache``.
-        Returns the buffer and the cache for the next chunk (its last frame)."""
+        Returns the buffer and the cache for the next chunk (its last frame;
+        nothing when this chunk is the ``last``)."""
         h, wp = self.sensor.height, _padded_width(self.sensor.width)
         if buffer.shape[2] < len(times):
             # reused by later chunks (no new page faults), with a little room for
             # a chunk with more keys; padding lanes stay 0 (never written)
-            room = max(len(times), min(max_keys, len(times) + len(times) // 4 + 1))
+            room = len(times) if last else max(len(times),
+                                               min(max_keys, len(times) + len(times) // 4 + 1))
             buffer = np.zeros((h, wp // 64, room, 64), np.float32)
         for i, t in enumerate(times.tolist()):
             if t in cache:
                 buffer[:, :, i] = cache[t]
             else:
                 self._sensor_frame_into(t, buffer, i)
+        if last:
+            return buffer, {}
         # the next chunk starts at this chunk's last key frame
         return buffer, {times[-1].item(): buffer[:, :, len(times) - 1].copy()}
 
@@ -201,7 +205,8 @@ class SimulationRun:
             n0 = 0
             while n0 < self.n_readouts:
                 n1, times, tau = self._chunk_keys(n0, max_keys)
-                key_buffer, cache = self._fill_key_frames(times, key_buffer, cache, max_keys)
+                key_buffer, cache = self._fill_key_frames(times, key_buffer, cache, max_keys,
+                                                          last=n1 >= self.n_readouts)
                 sched = build_schedule(tau, n0, n1)
                 # rows padded to whole 64-bit words; the kernel writes every word
                 out = buffers.get((n1 - n0, h, wp // 64))
