@@ -30,7 +30,7 @@ _decodes = 0
 
 def read_image(path: str, decode: Callable[[str], np.ndarray]) -> np.ndarray:
     """``decode(path)`` made read-only, or the array kept from an earlier decode of it."""
-    global _total
+    global _total, _decodes
     st = os.stat(path)
     key = (path, st.st_mtime_ns, st.st_size)
     with _lock:
@@ -38,10 +38,10 @@ def read_image(path: str, decode: Callable[[str], np.ndarray]) -> np.ndarray:
         if hit is not None:
             _images.move_to_end(key)
             return hit
-    global _decodes
     img = decode(path)
     img.setflags(write=False)
-    _decodes += 1
+    with _lock:
+        _decodes += 1
     if img.nbytes > CACHE_BYTES:
         return img
     with _lock:
