@@ -48,6 +48,8 @@ Charges too large for the fixed point saturate (:data:`Q_WHOLE_MAX`,
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
@@ -89,6 +91,68 @@ RESET_ZERO = 2
 
 RUN_SEGMENT = 0  # readouts [start, stop) inside one segment (or a hold)
 RUN_PIECES = 1  # one readout whose period contains key times
+
+
+class RunSchedule(NamedTuple):
+    """The readouts of one chunk as runs (``spikesim.schedule.build_schedule``).
+
+    Times are in readout units (readout ``n`` is the period ``[n, n+1)``);
+    run ``r`` covers readouts ``[start[r], stop[r])``.  A numba-compatible
+    named tuple: the kernel takes it as one argument.
+    """
+
+    kind: np.ndarray  #: (R,) int8, RUN_SEGMENT or RUN_PIECES
+    start: np.ndarray  #: (R,) int64, first readout of the run
+    stop: np.ndarray  #: (R,) int64, one past its last readout
+    a: np.ndarray  #: (R,) int64, key frame at the segment's start (a hold: a == b)
+    b: np.ndarray  #: (R,) int64, key frame at its end
+    ta: np.ndarray  #: (R,) float64, time of key ``a``
+    inv: np.ndarray  #: (R,) float64, 1 / (t_b − t_a), 0 for a hold
+    p0: np.ndarray  #: (R,) int64, a RUN_PIECES run's pieces are [p0, p1)
+    p1: np.ndarray  #: (R,) int64
+    piece_a: np.ndarray  #: (P,) int64, segment of each piece: key frames a, b
+    piece_b: np.ndarray  #: (P,) int64
+    piece_len: np.ndarray  #: (P,) float64, length of the piece (readouts)
+    piece_phi: np.ndarray  #: (P,) float64, (midpoint − t_a) / (t_b − t_a)
+
+
+class PixelModel(NamedTuple):
+    """The constant inputs of one accumulator set (the noisy stream or its
+    clean twin): per-pixel charge constants, reset, fast-path flags, and the
+    noise model's parameters and stream keys (``spikesim.rng.stream_key``).
+    Built once per run by ``spikesim.simulate``; a numba-compatible named tuple.
+
+    The per-pixel arrays are (H, Wp) float64, or a single row (1, Wp) shared by
+    every row (a sensor without fixed pattern); padding lanes (x ≥ W) have zero
+    gain and offset, so they never fire.
+    """
+
+    gain: np.ndarray  #: thresholds per readout per unit radiance
+    offset: np.ndarray  #: thresholds per readout (dark current)
+    electrons: np.ndarray  #: electrons per threshold; −1 everywhere: no shot noise
+    charge_sd: np.ndarray  #: per-readout charge noise s.d. (thresholds); −1: off
+    reset: int  #: RESET_MODULO, RESET_SUBTRACT or RESET_ZERO
+    fast_ok: bool  #: no per-readout noise: the vector fast paths may run
+    paper_fast_ok: bool  #: paper-mode noise only: its vector fast path may run
+    paper_sg2: float  #: paper mode σ_g² (DN²)
+    paper_sp2: float  #: paper mode σ_p² (DN)
+    jitter: float  #: σ_t, relative threshold s.d. per firing cycle
+    loss: float  #: charge loss at reset (fraction of the next readout's charge)
+    event: bool  #: shot noise drawn per spike (``spikesim._event``)
+    key_paper: np.uint64  #: stream keys of the per-readout draws
+    key_shot: np.uint64
+    key_jitter: np.uint64
+    key_charge: np.uint64
+    key_init: np.uint64  #: the initial accumulator's key
+    ev_keys: np.ndarray  #: (4,) uint64, the event sampler's wait, residual, refill, jitter keys
+
+
+class PixelState(NamedTuple):
+    """The state of one accumulator set, updated in place chunk by chunk."""
+
+    frac: np.ndarray  #: (H, Wp) uint64, fraction of the accumulator (2⁻⁶⁴ θ)
+    whole: np.ndarray  #: (H, Wp) int64, whole thresholds (subtract's backlog)
+    aux: np.ndarray  #: (4, H, Wp) float64 event state, or a (4, 1, 64) dummy when unused
 
 _U1 = np.uint64(1)
 
@@ -196,12 +260,15 @@ def _paper_fits(n0, n1, t_a, inv_span, ia, di, gain, offset, paper_sg2, paper_sp
 
 @njit(**_opts)  # a call per run: inlined, it slowed the noise-free paths (code layout)
 def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
-                paper_sg2, paper_sp2, key_paper, pkeys, level, z, sd, bits, f, g, o, zero):
+                model, pkeys, level, z, sd, bits, f, g, o, zero):
     """Paper-mode noise only, every noisy charge < 1 θ, empty whole part
     (:func:`_paper_fits`): per readout the block's normal deviates
     (:func:`spikesim.rng.normals_into`) and one vector step
     (:func:`spikesim._simd.paper_carry_add64`), the same values as
     :func:`_general_step`.  ``level, z, sd, bits, f, g, o`` are contiguous scratch."""
+    paper_sg2 = model.paper_sg2
+    paper_sp2 = model.paper_sp2
+    key_paper = model.key_paper
     for lane in range(BLOCK):
         f[lane] = frac[lane]
         g[lane] = gain[lane]
@@ -234,9 +301,8 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
 
 
 @njit(inline="always", **_opts)
-def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, reset,
-                  paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter, zbuf, bbuf,
-                  pkeys, shot_work, charge_sd, key_charge, loss, after):
+def _general_step(n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width,
+                  model, zbuf, bbuf, pkeys, shot_work, after):
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
@@ -250,9 +316,14 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
     fired at the previous readout) is scaled by ``1 − loss`` (charge loss at
     reset, before shot and charge noise); the flags are updated here.
     """
+    paper_sg2 = model.paper_sg2
+    paper_sp2 = model.paper_sp2
+    jitter = model.jitter
+    loss = model.loss
+    reset = model.reset
     pix0 = np.uint64(y * width + x0)
     if paper_sg2 > 0.0 or paper_sp2 > 0.0:
-        normals_into(readout_key(key_paper, n), pkeys, zbuf, bbuf)
+        normals_into(readout_key(model.key_paper, n), pkeys, zbuf, bbuf)
         if paper_sp2 > 0.0:
             for lane in range(BLOCK):
                 level = ibuf[lane]
@@ -268,10 +339,10 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
         for lane in range(BLOCK):
             ibuf[lane] *= 1.0 - loss * after[lane]
     if electrons[0] >= 0.0:
-        _shot_noise_block(ibuf, electrons, readout_key(key_shot, n), pix0, zbuf, bbuf,
+        _shot_noise_block(ibuf, electrons, readout_key(model.key_shot, n), pix0, zbuf, bbuf,
                           shot_work)
     if charge_sd[0] >= 0.0:  # accumulating charge noise (−1: off; padding lanes 0)
-        normals_into(readout_key(key_charge, n), pkeys, zbuf, bbuf)
+        normals_into(readout_key(model.key_charge, n), pkeys, zbuf, bbuf)
         for lane in range(BLOCK):
             ibuf[lane] += charge_sd[lane] * zbuf[lane]
     m = np.uint64(0)
@@ -295,7 +366,7 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
     if jitter > 0.0 and m != 0:
         # the next cycle's threshold is θ(1 + ε)  ⇔  the charge shifts by −ε;
         # deviates for all lanes (vectorised), applied where the lane fired
-        normals_into(readout_key(key_jitter, n), pkeys, zbuf, bbuf)
+        normals_into(readout_key(model.key_jitter, n), pkeys, zbuf, bbuf)
         for lane in range(BLOCK):
             fired = ((m >> np.uint64(lane)) & _U1) != 0
             eps = jitter * zbuf[lane]
@@ -308,23 +379,37 @@ def _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width, r
     return m
 
 
-@njit(**_opts)
-def _block_runs(frames, y, x0, width, t_off,
-                run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0, run_p1,
-                piece_a, piece_b, piece_len, piece_phi,
-                gain, offset, electrons, frac, whole, out, reset, fast_ok, paper_fast_ok,
-                paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
-                charge_sd, key_charge, scratch_f, scratch_u, ev, event, loss, ev_keys):
-    """All runs of one chunk for one 64-pixel block and one accumulator set.
+@njit(inline="always", **_opts)
+def _pixel_rows(model, y, x0, gain, offset, electrons, charge_sd):
+    """Copy the block's per-pixel constants (row ``y``, lanes from ``x0``) into
+    contiguous rows.  Loops, not slices: a view of an array the threads share
+    costs an atomic reference count per block."""
+    gy = y if model.gain.shape[0] > 1 else 0
+    oy = y if model.offset.shape[0] > 1 else 0
+    ey = y * np.int64(model.electrons.shape[0] > 1)
+    sy = y if model.charge_sd.shape[0] > 1 else 0
+    for lane in range(BLOCK):
+        gain[lane] = model.gain[gy, x0 + lane]
+        offset[lane] = model.offset[oy, x0 + lane]
+        electrons[lane] = model.electrons[ey, x0 + lane]
+        charge_sd[lane] = model.charge_sd[sy, x0 + lane]
 
-    ``scratch_f`` (12, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
+
+@njit(**_opts)
+def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
+                scratch_f, scratch_u, ev):
+    """All runs of one chunk (``runs``, a :class:`RunSchedule`) for one 64-pixel
+    block and one accumulator set (``model``, a :class:`PixelModel`; its state
+    ``frac``, ``whole`` and ``ev`` are the block's contiguous copies).
+
+    ``scratch_f`` (16, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
     caller's work rows (allocated once per image row, not per block).
-    ``fast_ok``: no per-readout noise; ``paper_fast_ok``: paper-mode noise
-    only.  Either path is taken for a run only where every lane's whole part
+    ``model.fast_ok``: no per-readout noise; ``model.paper_fast_ok``: paper-mode
+    noise only.  Either path is taken for a run only where every lane's whole part
     is 0 and every charge < 1 θ, where the three reset modes reduce to a
     carry (modulo and subtract: keep the fraction; zero: clear it).
-    ``event``: shot noise by the event-driven sampler (``spikesim._event``)
-    with the block's state ``ev`` (4, 64); ``loss`` the charge loss at reset
+    ``model.event``: shot noise by the event-driven sampler (``spikesim._event``)
+    with the block's state ``ev`` (4, 64); ``model.loss`` the charge loss at reset
     (its flags in ``ev[AFTER_RESET]``).
     """
     ia = scratch_f[0]
@@ -335,51 +420,60 @@ def _block_runs(frames, y, x0, width, t_off,
     zbuf = scratch_f[5]
     sdbuf = scratch_f[6]
     shot_work = scratch_f[7:12]
+    gain = scratch_f[12]
+    offset = scratch_f[13]
+    electrons = scratch_f[14]
+    charge_sd = scratch_f[15]
     s_u1 = scratch_u[0]
     s_u2 = scratch_u[1]
     bbuf = scratch_u[2]
     pkeys = scratch_u[3]
+    _pixel_rows(model, y, x0, gain, offset, electrons, charge_sd)
     blk = x0 // BLOCK
+    reset = model.reset
     zero = reset == RESET_ZERO
-    if paper_sg2 > 0.0 or paper_sp2 > 0.0 or jitter > 0.0 or charge_sd[0] >= 0.0:
+    if (model.paper_sg2 > 0.0 or model.paper_sp2 > 0.0 or model.jitter > 0.0
+            or charge_sd[0] >= 0.0):
         pixel_keys_into(np.uint64(y * width + x0), pkeys)
     after = ev[AFTER_RESET]
-    if event:
+    if model.event:
         pix0 = np.uint64(y * width + x0)
-        for r in range(run_kind.shape[0]):
-            n0 = run_start[r]
-            n1 = run_stop[r]
-            if run_kind[r] == RUN_PIECES:
-                _pieces_radiance(frames, run_p0[r], run_p1[r], piece_a, piece_b, piece_len,
-                                 piece_phi, y, x0, ibuf)
+        for r in range(runs.kind.shape[0]):
+            n0 = runs.start[r]
+            n1 = runs.stop[r]
+            if runs.kind[r] == RUN_PIECES:
+                _pieces_radiance(frames, runs.p0[r], runs.p1[r], runs.piece_a,
+                                 runs.piece_b, runs.piece_len, runs.piece_phi, y, x0, ibuf)
                 out[n0 - t_off, y, blk] = event_step(ibuf, gain, offset, electrons, ev, reset,
-                                                     jitter, loss, ev_keys, pix0)
+                                                     model.jitter, model.loss, model.ev_keys,
+                                                     pix0)
                 continue
-            t_a = run_ta[r]
-            inv = run_inv[r]
-            _segment_radiance(frames, run_a[r], run_b[r], y, x0, ia, di)
+            t_a = runs.ta[r]
+            inv = runs.inv[r]
+            _segment_radiance(frames, runs.a[r], runs.b[r], y, x0, ia, di)
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
                 for lane in range(BLOCK):
                     ibuf[lane] = ia[lane] + di[lane] * phi
                 out[n - t_off, y, blk] = event_step(ibuf, gain, offset, electrons, ev, reset,
-                                                    jitter, loss, ev_keys, pix0)
+                                                    model.jitter, model.loss, model.ev_keys,
+                                                    pix0)
         return
-    for r in range(run_kind.shape[0]):
-        n0 = run_start[r]
-        n1 = run_stop[r]
-        if run_kind[r] == RUN_PIECES:
-            _pieces_radiance(frames, run_p0[r], run_p1[r], piece_a, piece_b, piece_len,
-                             piece_phi, y, x0, ibuf)
-            m = _general_step(n0, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
-                              reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                              key_jitter, zbuf, bbuf, pkeys, shot_work, charge_sd, key_charge,
-                              loss, after)
-            out[n0 - t_off, y, blk] = m
+    fast_ok = model.fast_ok
+    paper_fast_ok = model.paper_fast_ok
+    for r in range(runs.kind.shape[0]):
+        n0 = runs.start[r]
+        n1 = runs.stop[r]
+        if runs.kind[r] == RUN_PIECES:
+            _pieces_radiance(frames, runs.p0[r], runs.p1[r], runs.piece_a, runs.piece_b,
+                             runs.piece_len, runs.piece_phi, y, x0, ibuf)
+            out[n0 - t_off, y, blk] = _general_step(
+                n0, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width, model,
+                zbuf, bbuf, pkeys, shot_work, after)
             continue
-        t_a = run_ta[r]
-        inv = run_inv[r]
-        _segment_radiance(frames, run_a[r], run_b[r], y, x0, ia, di)
+        t_a = runs.ta[r]
+        inv = runs.inv[r]
+        _segment_radiance(frames, runs.a[r], runs.b[r], y, x0, ia, di)
         if fast_ok or paper_fast_ok:
             empty = 0
             for lane in range(BLOCK):
@@ -411,20 +505,17 @@ def _block_runs(frames, y, x0, width, t_off,
             _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
                          s_u1, s_g, s_o, zero)
         elif paper_fast_ok and fits and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset,
-                                           paper_sg2, paper_sp2):
+                                                    model.paper_sg2, model.paper_sp2):
             _fast_paper(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
-                        paper_sg2, paper_sp2, key_paper, pkeys, ibuf, zbuf, sdbuf, bbuf,
-                        s_u1, s_g, s_o, zero)
+                        model, pkeys, ibuf, zbuf, sdbuf, bbuf, s_u1, s_g, s_o, zero)
         else:
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
                 for lane in range(BLOCK):
                     ibuf[lane] = ia[lane] + di[lane] * phi
-                m = _general_step(n, ibuf, gain, offset, electrons, frac, whole, y, x0, width,
-                                  reset, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                                  key_jitter, zbuf, bbuf, pkeys, shot_work, charge_sd,
-                                  key_charge, loss, after)
-                out[n - t_off, y, blk] = m
+                out[n - t_off, y, blk] = _general_step(
+                    n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width,
+                    model, zbuf, bbuf, pkeys, shot_work, after)
 
 
 @njit(inline="always", **_opts)
@@ -446,104 +537,91 @@ def _store_state(frac, whole, y, x0, f, w):
 
 
 @njit(parallel=True, **_opts)
-def simulate_chunk(frames, width, t_off,
-                   run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0, run_p1,
-                   piece_a, piece_b, piece_len, piece_phi,
-                   gain, offset, electrons, frac, whole, out, reset, fast_ok, paper_fast_ok,
-                   paper_sg2, paper_sp2, key_paper, key_shot, jitter, key_jitter,
-                   clean, c_frac, c_whole, c_out, c_gain, c_offset, c_electrons,
-                   charge_sd, key_charge, init, init_key, aux, event, loss, ev_keys):
-    """Simulate readouts ``[run_start[0], run_stop[-1])`` for every pixel.
+def simulate_chunk(frames, width, t_off, runs, model, state, out, init,
+                   twin, twin_model, twin_state, twin_out):
+    """Simulate readouts ``[runs.start[0], runs.stop[-1])`` for every pixel.
 
-    ``frames`` (H, Wp/64, K', 64) float32 hold the sensor-channel radiances at
-    the chunk's key frames (key ``k`` of pixel ``x`` at ``[y, x // 64, k,
-    x % 64]``; K' ≥ K, padding lanes zero, ``Wp`` a multiple of 64): the key
-    frames of one block are contiguous, so a block streams through them.
-    ``gain``, ``offset`` (H, Wp) float64 and ``electrons`` (H, Wp) float64
-    (all −1 when shot noise is off) are the per-pixel charge constants; each
-    may instead be a single row (1, Wp) shared by every row (a uniform
-    sensor: no per-call array of H·Wp to build).  ``charge_sd`` likewise: the
-    per-readout charge noise s.d. (thresholds; padding lanes 0), −1 when off.
-    ``frac`` (H, Wp) uint64 and ``whole`` (H, Wp) int64 the accumulator,
-    updated in place; with ``init`` ≥ 0 they are first initialised here
-    (their content on entry is ignored): ``init`` = 1 a uniform fraction in
-    [0, 1) θ from ``init_key`` (:func:`init_state`'s bits), 0 zero.
-    ``fast_ok`` / ``paper_fast_ok`` allow the vector fast paths (no
-    per-readout noise / paper-mode noise only), taken per run and block where
-    every whole part is 0 and every charge is provably < 1 θ.
-    ``out`` (T, H, Wp/64) uint64 receives the spikes of
-    readout ``n`` at ``out[n − t_off]``: bit k of word j is pixel 64·j + k,
-    which on a little-endian machine is exactly the little-bit-order packed
-    byte layout (viewed as uint8, rows padded to Wp/8 bytes).  When ``clean`` is true the
-    noise-free twin is advanced in the same pass with its own arrays.
-    ``aux`` (4, H, Wp) float64 is the event-driven state (``spikesim._event``:
-    wait, need, cycle, after-reset flag), used when ``event`` (shot noise
-    drawn per spike; ``ev_keys`` (4,) uint64 the keys of its wait, residual,
-    refill and jitter draws) or ``loss`` > 0 (charge
-    loss at reset, the fraction of the next readout's charge lost; row 3 the
-    flags); otherwise it may be a (4, 1, 64) dummy.  With ``init`` ≥ 0 it is
-    initialised from the initial accumulator.
+    Parameters
+    ----------
+    frames : (H, Wp/64, K', 64) float32
+        The sensor-channel radiances at the chunk's key frames: key ``k`` of
+        pixel ``x`` at ``[y, x // 64, k, x % 64]`` (K' ≥ K, padding lanes zero,
+        ``Wp`` a multiple of 64), so a block streams through its key frames.
+    width : int
+        The sensor's width W (pixels beyond it are padding).
+    t_off : int
+        The chunk's first readout: readout ``n`` is written to ``out[n − t_off]``.
+    runs : RunSchedule
+        The chunk's readouts as runs.
+    model : PixelModel
+        Charge constants, reset and noise of the (noisy) stream.
+    state : PixelState
+        Its accumulator, updated in place.  With ``init`` ≥ 0 it is first
+        initialised here (its content on entry is ignored): ``init`` = 1 a
+        uniform fraction in [0, 1) θ from ``model.key_init`` (:func:`init_state`'s
+        bits), 0 zero; the event state ``aux`` is derived from it.  ``init`` = −1
+        carries the state on from the previous chunk.
+    out : (T, H, Wp/64) uint64
+        Receives the spikes: bit k of word j of ``out[n − t_off, y]`` is pixel
+        64·j + k, which on a little-endian machine is exactly the little-bit-order
+        packed byte layout (viewed as uint8, rows padded to Wp/8 bytes).
+    init : int
+        See ``state``.
+    twin : bool
+        Advance the noise-free twin (``twin_model``, ``twin_state``, written to
+        ``twin_out``) in the same pass; when false those are placeholders of the
+        same types.
     """
-    height = frames.shape[0]
+    # (no argument may be called ``sched``: numba's parallel loops use that name)
+    for y in prange(frames.shape[0]):
+        _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init,
+                      twin, twin_model, twin_state, twin_out)
+
+
+@njit(**_opts)
+def _simulate_row(y, frames, width, t_off, runs, model, state, out, init,
+                  twin, twin_model, twin_state, twin_out):
+    """Row ``y`` of :func:`simulate_chunk` (same arguments), block by block."""
     nblk = frames.shape[1]
-    for y in prange(height):
-        scratch_f = np.empty((12, BLOCK), np.float64)
-        scratch_u = np.empty((4, BLOCK), np.uint64)
-        ev = np.zeros((4, BLOCK), np.float64)  # the block's event state, contiguous
-        use_aux = event or loss > 0.0
-        f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
-        w = np.empty(BLOCK, np.int64)
-        # a single row (1, Wp) is shared by every row (min() would mistype in prange)
-        gy = y * np.int64(gain.shape[0] > 1)
-        oy = y * np.int64(offset.shape[0] > 1)
-        ey = y * np.int64(electrons.shape[0] > 1)
-        cgy = y * np.int64(c_gain.shape[0] > 1)
-        coy = y * np.int64(c_offset.shape[0] > 1)
-        cey = y * np.int64(c_electrons.shape[0] > 1)
-        csy = y * np.int64(charge_sd.shape[0] > 1)
-        if init >= 0:
-            _init_row(frac[y], whole[y], init_key, y, width, init == 1)
-            if clean:
-                for x in range(frac.shape[1]):
-                    c_frac[y, x] = frac[y, x]
-                    c_whole[y, x] = whole[y, x]
-            if event:
-                init_event_row(aux[:, y], frac[y], electrons[ey], ev_keys[0], y, width)
-            elif use_aux:
-                for x in range(frac.shape[1]):
-                    aux[AFTER_RESET, y, x] = 0.0
-        for b in range(nblk):
-            x0 = b * BLOCK
-            sl = slice(x0, x0 + BLOCK)
-            _load_state(frac, whole, y, x0, f, w)
-            if use_aux:
-                for k in range(4):
-                    for lane in range(BLOCK):
-                        ev[k, lane] = aux[k, y, x0 + lane]
-            _block_runs(frames, y, x0, width, t_off,
-                        run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv, run_p0,
-                        run_p1, piece_a, piece_b, piece_len, piece_phi,
-                        gain[gy, sl], offset[oy, sl], electrons[ey, sl], f, w, out, reset,
-                        fast_ok,
-                        paper_fast_ok, paper_sg2, paper_sp2, key_paper, key_shot, jitter,
-                        key_jitter, charge_sd[csy, sl], key_charge, scratch_f, scratch_u,
-                        ev, event, loss, ev_keys)
-            _store_state(frac, whole, y, x0, f, w)
-            if use_aux:
-                for k in range(4):
-                    for lane in range(BLOCK):
-                        aux[k, y, x0 + lane] = ev[k, lane]
-            if clean:
-                _load_state(c_frac, c_whole, y, x0, f, w)
-                _block_runs(frames, y, x0, width, t_off,
-                            run_kind, run_start, run_stop, run_a, run_b, run_ta, run_inv,
-                            run_p0, run_p1, piece_a, piece_b, piece_len, piece_phi,
-                            c_gain[cgy, sl], c_offset[coy, sl], c_electrons[cey, sl], f, w,
-                            c_out, reset, True, False, 0.0, 0.0, np.uint64(0),
-                            np.uint64(0),
-                            0.0, np.uint64(0), c_electrons[cey, sl], np.uint64(0),
-                            scratch_f, scratch_u, ev, False, 0.0, ev_keys)
-                _store_state(c_frac, c_whole, y, x0, f, w)
+    use_aux = model.event or model.loss > 0.0
+    frac = state.frac
+    whole = state.whole
+    aux = state.aux
+    scratch_f = np.empty((16, BLOCK), np.float64)
+    scratch_u = np.empty((4, BLOCK), np.uint64)
+    ev = np.zeros((4, BLOCK), np.float64)  # the block's event state, contiguous
+    f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
+    w = np.empty(BLOCK, np.int64)
+    if init >= 0:
+        _init_row(frac[y], whole[y], model.key_init, y, width, init == 1)
+        if twin:
+            for x in range(frac.shape[1]):
+                twin_state.frac[y, x] = frac[y, x]
+                twin_state.whole[y, x] = whole[y, x]
+        if model.event:
+            ey = y * np.int64(model.electrons.shape[0] > 1)
+            init_event_row(aux[:, y], frac[y], model.electrons[ey], model.ev_keys[0], y, width)
+        elif use_aux:
+            for x in range(frac.shape[1]):
+                aux[AFTER_RESET, y, x] = 0.0
+    for b in range(nblk):
+        x0 = b * BLOCK
+        _load_state(frac, whole, y, x0, f, w)
+        if use_aux:
+            for k in range(4):
+                for lane in range(BLOCK):
+                    ev[k, lane] = aux[k, y, x0 + lane]
+        _block_runs(frames, y, x0, width, t_off, runs, model, f, w, out, scratch_f, scratch_u, ev)
+        _store_state(frac, whole, y, x0, f, w)
+        if use_aux:
+            for k in range(4):
+                for lane in range(BLOCK):
+                    aux[k, y, x0 + lane] = ev[k, lane]
+        if twin:
+            _load_state(twin_state.frac, twin_state.whole, y, x0, f, w)
+            _block_runs(frames, y, x0, width, t_off, runs, twin_model, f, w, twin_out,
+                        scratch_f, scratch_u, ev)
+            _store_state(twin_state.frac, twin_state.whole, y, x0, f, w)
 
 
 @njit(inline="always", **_opts)

@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from spikesim._kernels import RunSchedule
 from spikesim.errors import bad_value
 
-__all__ = ["Schedule", "build_schedule", "key_readout_times"]
+__all__ = ["RunSchedule", "build_schedule", "key_readout_times"]
 
 _SNAP = 1e-9  # key times within this many readouts of an integer are snapped to it
 
@@ -42,30 +42,6 @@ def key_readout_times(key_times_s: np.ndarray, clock_hz: float) -> np.ndarray:
     return tau
 
 
-@dataclass
-class Schedule:
-    """Arrays consumed by ``_kernels.simulate_chunk`` (see there)."""
-
-    run_kind: np.ndarray
-    run_start: np.ndarray
-    run_stop: np.ndarray
-    run_a: np.ndarray
-    run_b: np.ndarray
-    run_ta: np.ndarray
-    run_inv: np.ndarray
-    run_p0: np.ndarray
-    run_p1: np.ndarray
-    piece_a: np.ndarray
-    piece_b: np.ndarray
-    piece_len: np.ndarray
-    piece_phi: np.ndarray
-
-    def kernel_args(self) -> tuple:
-        return (self.run_kind, self.run_start, self.run_stop, self.run_a, self.run_b,
-                self.run_ta, self.run_inv, self.run_p0, self.run_p1,
-                self.piece_a, self.piece_b, self.piece_len, self.piece_phi)
-
-
 def _segment_at(tau: np.ndarray, x: float) -> tuple[int, int, float, float]:
     """(a, b, t_a, inv_span) of the segment or hold containing time x."""
     k = len(tau)
@@ -77,7 +53,7 @@ def _segment_at(tau: np.ndarray, x: float) -> tuple[int, int, float, float]:
     return j, j + 1, float(tau[j]), 1.0 / (float(tau[j + 1]) - float(tau[j]))
 
 
-def build_schedule(tau: np.ndarray, n0: int, n1: int) -> Schedule:
+def build_schedule(tau: np.ndarray, n0: int, n1: int) -> RunSchedule:
     """Schedule of readouts ``[n0, n1)`` given key readout times ``tau``."""
     tau_list = [float(v) for v in tau]
     k = len(tau_list)
@@ -112,16 +88,16 @@ def build_schedule(tau: np.ndarray, n0: int, n1: int) -> Schedule:
         n += 1
     r = np.array(runs, dtype=object).reshape(-1, 9)
     p = np.array(pieces, dtype=np.float64).reshape(-1, 4)
-    return Schedule(
-        run_kind=r[:, 0].astype(np.int8),
-        run_start=r[:, 1].astype(np.int64),
-        run_stop=r[:, 2].astype(np.int64),
-        run_a=r[:, 3].astype(np.int64),
-        run_b=r[:, 4].astype(np.int64),
-        run_ta=r[:, 5].astype(np.float64),
-        run_inv=r[:, 6].astype(np.float64),
-        run_p0=r[:, 7].astype(np.int64),
-        run_p1=r[:, 8].astype(np.int64),
+    return RunSchedule(
+        kind=r[:, 0].astype(np.int8),
+        start=r[:, 1].astype(np.int64),
+        stop=r[:, 2].astype(np.int64),
+        a=r[:, 3].astype(np.int64),
+        b=r[:, 4].astype(np.int64),
+        ta=r[:, 5].astype(np.float64),
+        inv=r[:, 6].astype(np.float64),
+        p0=r[:, 7].astype(np.int64),
+        p1=r[:, 8].astype(np.int64),
         piece_a=p[:, 0].astype(np.int64),
         piece_b=p[:, 1].astype(np.int64),
         piece_len=p[:, 2].copy(),

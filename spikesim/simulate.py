@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -186,10 +185,10 @@ class SimulationRun:
         h, w = sensor.shape
         wp = _padded_width(w)
         nbytes = packed_width(w)
-        noisy = _KernelInputs.build(sensor, self.seed, sensor.noise,
-                                    self.shot_sampler == "event")
-        clean = (_KernelInputs.build(sensor, self.seed, None) if self.clean_twin
-                 else _KernelInputs.unused())
+        noisy, noisy_state = _kernel_inputs(sensor, self.seed, sensor.noise,
+                                            self.shot_sampler == "event")
+        clean, clean_state = (_kernel_inputs(sensor, self.seed, None) if self.clean_twin
+                              else _unused_inputs())
         dummy_out = np.zeros((1, 1, 1), np.uint64)
         init = 1 if sensor.init == "uniform" else 0  # the kernel's first call initialises
         bar = None
@@ -211,15 +210,8 @@ class SimulationRun:
                 # rows padded to whole 64-bit words; the kernel writes every word
                 out = buffers.get((n1 - n0, h, wp // 64))
                 c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
-                _kernels.simulate_chunk(
-                    key_buffer, w, n0, *sched.kernel_args(), noisy.gain, noisy.offset,
-                    noisy.electrons, noisy.frac, noisy.whole, out, noisy.reset, noisy.fast_ok,
-                    noisy.paper_fast_ok, noisy.paper_sg2, noisy.paper_sp2, noisy.key_paper,
-                    noisy.key_shot, noisy.jitter, noisy.key_jitter, self.clean_twin,
-                    clean.frac, clean.whole, c_out, clean.gain, clean.offset, clean.electrons,
-                    noisy.charge_sd, noisy.key_charge, init, noisy.key_init, noisy.aux,
-                    noisy.event, noisy.loss, noisy.ev_keys,
-                )
+                _kernels.simulate_chunk(key_buffer, w, n0, sched, noisy, noisy_state, out, init,
+                                        self.clean_twin, clean, clean_state, c_out)
                 init = -1  # later chunks carry the state on
                 gt, sel = self._ground_truth(n0, n1)
                 packed = out.view(np.uint8)[:, :, :nbytes]
@@ -234,76 +226,56 @@ class SimulationRun:
                 bar.close()
 
 
-@dataclass
-class _KernelInputs:
-    """Everything :func:`spikesim._kernels.simulate_chunk` needs about one
-    accumulator set (the noisy stream or its clean twin): per-pixel charge
-    constants, accumulator arrays, reset code, fast-path flags, and the noise
-    model's parameters and stream keys (from ``noise.kernel_params()``)."""
+def _kernel_inputs(sensor: Sensor, seed: int, noise, event: bool = True,
+                   ) -> tuple[_kernels.PixelModel, _kernels.PixelState]:
+    """The kernel's model and (uninitialised) state of one accumulator set:
+    the stream with ``noise`` (None: the clean twin).  The noise model encodes
+    itself (``noise.kernel_params()``, ``fixed_pattern``).  ``event``: draw shot
+    noise per spike where the model allows it (``noise.event_driven``), else per
+    readout (the reference sampler of the statistical tests)."""
+    h, w = sensor.shape
+    wp = _padded_width(w)
+    gain, offset, electrons, charge_sd = _charge_constants(noise, h, w, sensor.full_scale_rate)
+    params = NO_NOISE_PARAMS if noise is None else noise.kernel_params()
+    per_readout = noise is not None and noise.per_readout
+    event = bool(event and isinstance(noise, PhysicalNoise) and noise.event_driven)
+    loss = float(params["loss"])
+    model = _kernels.PixelModel(
+        gain=gain, offset=offset, electrons=electrons, charge_sd=charge_sd,
+        reset=_RESET_CODES[sensor.reset],
+        fast_ok=not per_readout,  # charge loss makes per_readout true
+        paper_fast_ok=bool(params["paper_only"]),
+        paper_sg2=float(params["paper_sg2"]),
+        paper_sp2=float(params["paper_sp2"]),
+        jitter=float(params["jitter"]),
+        loss=loss,
+        event=event,
+        key_paper=rng.stream_key(seed, rng.STREAM_PAPER),
+        key_shot=rng.stream_key(seed, rng.STREAM_SHOT),
+        key_jitter=rng.stream_key(seed, rng.STREAM_JITTER),
+        key_charge=rng.stream_key(seed, rng.STREAM_CHARGE),
+        key_init=rng.stream_key(seed, rng.STREAM_INIT),
+        ev_keys=np.array([rng.stream_key(seed, s) for s in (
+            rng.STREAM_WAIT, rng.STREAM_RESIDUAL, rng.STREAM_REFILL, rng.STREAM_JITTER)],
+            np.uint64),
+    )
+    state = _kernels.PixelState(  # initialised by the kernel's first call
+        frac=np.empty((h, wp), np.uint64),
+        whole=np.empty((h, wp), np.int64),
+        aux=np.empty((4, h, wp)) if event or loss > 0 else np.zeros((4, 1, 64)),
+    )
+    return model, state
 
-    gain: np.ndarray
-    offset: np.ndarray
-    electrons: np.ndarray
-    charge_sd: np.ndarray
-    frac: np.ndarray
-    whole: np.ndarray
-    reset: int = _kernels.RESET_MODULO
-    fast_ok: bool = True
-    paper_fast_ok: bool = False
-    paper_sg2: float = 0.0
-    paper_sp2: float = 0.0
-    jitter: float = 0.0
-    key_paper: np.uint64 = np.uint64(0)
-    key_shot: np.uint64 = np.uint64(0)
-    key_jitter: np.uint64 = np.uint64(0)
-    key_charge: np.uint64 = np.uint64(0)
-    key_init: np.uint64 = np.uint64(0)
-    aux: np.ndarray = field(default_factory=lambda: np.zeros((4, 1, 64)))
-    event: bool = False
-    loss: float = 0.0
-    ev_keys: np.ndarray = field(default_factory=lambda: np.zeros(4, np.uint64))
 
-    @classmethod
-    def build(cls, sensor: Sensor, seed: int, noise, event: bool = True) -> _KernelInputs:
-        """Inputs for ``noise`` (None: the clean twin).  ``event``: draw shot
-        noise per spike where the model allows it (``noise.event_driven``),
-        else per readout (the reference sampler of the statistical tests)."""
-        h, w = sensor.shape
-        wp = _padded_width(w)
-        gain, offset, electrons, charge_sd = _charge_constants(noise, h, w,
-                                                               sensor.full_scale_rate)
-        params = NO_NOISE_PARAMS if noise is None else noise.kernel_params()
-        per_readout = noise is not None and noise.per_readout
-        event = bool(event and isinstance(noise, PhysicalNoise) and noise.event_driven)
-        aux = (np.empty((4, h, wp)) if event or params["loss"] > 0 else np.zeros((4, 1, 64)))
-        return cls(
-            gain, offset, electrons, charge_sd,
-            frac=np.empty((h, wp), np.uint64),  # initialised by the kernel's first call
-            whole=np.empty((h, wp), np.int64),
-            reset=_RESET_CODES[sensor.reset],
-            fast_ok=not per_readout,  # charge loss makes per_readout true
-            paper_fast_ok=params["paper_only"],
-            paper_sg2=params["paper_sg2"],
-            paper_sp2=params["paper_sp2"],
-            jitter=params["jitter"],
-            key_paper=rng.stream_key(seed, rng.STREAM_PAPER),
-            key_shot=rng.stream_key(seed, rng.STREAM_SHOT),
-            key_jitter=rng.stream_key(seed, rng.STREAM_JITTER),
-            key_charge=rng.stream_key(seed, rng.STREAM_CHARGE),
-            key_init=rng.stream_key(seed, rng.STREAM_INIT),
-            aux=aux,  # initialised by the kernel's first call
-            event=event,
-            loss=params["loss"],
-            ev_keys=np.array([rng.stream_key(seed, s) for s in (
-                rng.STREAM_WAIT, rng.STREAM_RESIDUAL, rng.STREAM_REFILL, rng.STREAM_JITTER)],
-                np.uint64),
-        )
-
-    @classmethod
-    def unused(cls) -> _KernelInputs:
-        """Placeholders for the clean twin's arguments when there is none."""
-        z = np.zeros((1, 64))
-        return cls(z, z, z, z, np.zeros((1, 64), np.uint64), np.zeros((1, 64), np.int64))
+def _unused_inputs() -> tuple[_kernels.PixelModel, _kernels.PixelState]:
+    """Placeholders of the clean twin's model and state when there is none
+    (the same types, so the kernel compiles once)."""
+    z = np.zeros((1, 64))
+    key = np.uint64(0)
+    model = _kernels.PixelModel(z, z, z, z, _kernels.RESET_MODULO, True, False, 0.0, 0.0, 0.0,
+                                0.0, False, key, key, key, key, key, np.zeros(4, np.uint64))
+    return model, _kernels.PixelState(np.zeros((1, 64), np.uint64), np.zeros((1, 64), np.int64),
+                                      np.zeros((4, 1, 64)))
 
 
 class _RecycledOutput:

@@ -1,0 +1,55 @@
+"""The kernel's typed inputs: one numba type per bundle, whatever the noise."""
+
+import numba
+import numpy as np
+import pytest
+
+import spikesim as ss
+from spikesim import _kernels
+from spikesim.schedule import build_schedule
+from spikesim.simulate import _kernel_inputs, _unused_inputs
+
+NOISES = [None, ss.noise.PaperNoise(sigma_g=10.0), ss.noise.PaperNoise(sigma_g=2.0, sigma_p=3.0),
+          ss.noise.PhysicalNoise(), ss.noise.PhysicalNoise(charge_noise_electrons=2.0),
+          ss.noise.PhysicalNoise(reset_charge_loss=0.01, threshold_mismatch=0.0, prnu=0.0,
+                                 dark_current_rel=0.0)]
+
+
+@pytest.mark.parametrize("reset", ["modulo", "subtract", "zero"])
+def test_every_noise_model_encodes_to_the_same_kernel_types(reset):
+    """A noise model changes values, never types: the kernel compiles once for
+    every model, for the clean twin and for its placeholder."""
+    models, states = set(), set()
+    for noise in NOISES:
+        sensor = ss.Sensor(height=3, width=70, cfa="RGGB", noise=noise, reset=reset)
+        for event in (True, False):
+            model, state = _kernel_inputs(sensor, 7, noise, event)
+            assert isinstance(model, _kernels.PixelModel)
+            models.add(numba.typeof(model))
+            states.add(numba.typeof(state))
+    model, state = _unused_inputs()
+    models.add(numba.typeof(model))
+    states.add(numba.typeof(state))
+    assert len(models) == 1 and len(states) == 1
+
+
+def test_physical_model_keeps_its_parameters_and_keys():
+    noise = ss.noise.PhysicalNoise(temporal_threshold_noise=0.03, reset_charge_loss=0.002)
+    sensor = ss.Sensor(height=2, width=5, cfa=None, noise=noise, reset="zero")
+    model, state = _kernel_inputs(sensor, 11, noise)
+    assert model.reset == _kernels.RESET_ZERO
+    assert model.jitter == 0.03 and model.loss == 0.002
+    assert not model.fast_ok  # charge loss acts per readout
+    assert model.key_shot == ss.rng.stream_key(11, ss.rng.STREAM_SHOT)
+    assert state.frac.shape == (2, 64) and state.aux.shape == (4, 2, 64)
+
+
+def test_schedule_is_a_run_schedule_of_fixed_dtypes():
+    runs = build_schedule(np.array([0.0, 2.5, 7.0]), 0, 10)
+    assert isinstance(runs, _kernels.RunSchedule)
+    assert runs.kind.dtype == np.int8 and runs.start.dtype == np.int64
+    assert runs.start[0] == 0 and runs.stop[-1] == 10
+    # readout 2 contains key time 2.5: its own run, two pieces
+    pieces = [r for r in range(len(runs.kind)) if runs.kind[r] == _kernels.RUN_PIECES]
+    assert [int(runs.start[r]) for r in pieces] == [2]
+    assert runs.p1[pieces[0]] - runs.p0[pieces[0]] == 2
