@@ -16,6 +16,7 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 from spikesim import _kernels, _mosaic, rng
+from spikesim._memory import ArrayPool, RecycledOutput
 from spikesim._validate import check_int
 from spikesim._version import __version__
 from spikesim.bits import packed_width
@@ -39,6 +40,9 @@ if sys.byteorder != "little":  # pragma: no cover - every supported target is li
 #: Shot-noise samplers: per spike (``spikesim._event``) or per readout (the
 #: original sampler, kept as the statistical tests' reference).
 _SHOT_SAMPLERS = ("event", "readout")
+#: Arrays private to a run, kept for the next run of the same size (``spikesim._memory``).
+_STATE_POOL = ArrayPool(128 << 20)
+_KEY_POOL = ArrayPool(64 << 20)
 _RESET_CODES = {"modulo": _kernels.RESET_MODULO, "subtract": _kernels.RESET_SUBTRACT,
                 "zero": _kernels.RESET_ZERO}
 
@@ -155,7 +159,10 @@ class SimulationRun:
             # a chunk with more keys; padding lanes stay 0 (never written)
             room = len(times) if last else max(len(times),
                                                min(max_keys, len(times) + len(times) // 4 + 1))
-            buffer = np.zeros((h, wp // 64, room, 64), np.float32)
+            # padding lanes are 0 in a fresh buffer and in a pooled one (same shape,
+            # same padding, never written)
+            _KEY_POOL.give(buffer)
+            buffer = _KEY_POOL.take((h, wp // 64, room, 64), np.float32, zeros=True)
         for i, t in enumerate(times.tolist()):
             if t in cache:
                 buffer[:, :, i] = cache[t]
@@ -186,9 +193,9 @@ class SimulationRun:
         wp = _padded_width(w)
         nbytes = packed_width(w)
         noisy, noisy_state = _kernel_inputs(sensor, self.seed, sensor.noise,
-                                            self.shot_sampler == "event")
-        clean, clean_state = (_kernel_inputs(sensor, self.seed, None) if self.clean_twin
-                              else _unused_inputs())
+                                            self.shot_sampler == "event", _STATE_POOL)
+        clean, clean_state = (_kernel_inputs(sensor, self.seed, None, pool=_STATE_POOL)
+                              if self.clean_twin else _unused_inputs())
         dummy_out = np.zeros((1, 1, 1), np.uint64)
         init = 1 if sensor.init == "uniform" else 0  # the kernel's first call initialises
         bar = None
@@ -199,7 +206,7 @@ class SimulationRun:
         max_keys = max(2, CHUNK_KEYFRAME_BYTES // (h * wp * 4))
         key_buffer = np.zeros((h, wp // 64, 0, 64), np.float32)
         cache: dict[float, np.ndarray] = {}
-        buffers = _RecycledOutput()
+        buffers = RecycledOutput()
         try:
             n0 = 0
             while n0 < self.n_readouts:
@@ -224,15 +231,19 @@ class SimulationRun:
         finally:
             if bar is not None:
                 bar.close()
+            _STATE_POOL.give(*noisy_state, *(clean_state if self.clean_twin else ()))
+            _KEY_POOL.give(key_buffer)
 
 
 def _kernel_inputs(sensor: Sensor, seed: int, noise, event: bool = True,
+                   pool: ArrayPool | None = None,
                    ) -> tuple[_kernels.PixelModel, _kernels.PixelState]:
     """The kernel's model and (uninitialised) state of one accumulator set:
     the stream with ``noise`` (None: the clean twin).  The noise model encodes
     itself (``noise.kernel_params()``, ``fixed_pattern``).  ``event``: draw shot
     noise per spike where the model allows it (``noise.event_driven``), else per
-    readout (the reference sampler of the statistical tests)."""
+    readout (the reference sampler of the statistical tests).  The state's
+    arrays come from ``pool`` when given (their content is never read)."""
     h, w = sensor.shape
     wp = _padded_width(w)
     gain, offset, electrons, charge_sd = _charge_constants(noise, h, w, sensor.full_scale_rate)
@@ -259,10 +270,11 @@ def _kernel_inputs(sensor: Sensor, seed: int, noise, event: bool = True,
             rng.STREAM_WAIT, rng.STREAM_RESIDUAL, rng.STREAM_REFILL, rng.STREAM_JITTER)],
             np.uint64),
     )
+    take = pool.take if pool is not None else (lambda shape, dtype: np.empty(shape, dtype))
     state = _kernels.PixelState(  # initialised by the kernel's first call
-        frac=np.empty((h, wp), np.uint64),
-        whole=np.empty((h, wp), np.int64),
-        aux=np.empty((4, h, wp)) if event or loss > 0 else np.zeros((4, 1, 64)),
+        frac=take((h, wp), np.uint64),
+        whole=take((h, wp), np.int64),
+        aux=take((4, h, wp), np.float64) if event or loss > 0 else np.zeros((4, 1, 64)),
     )
     return model, state
 
@@ -276,33 +288,6 @@ def _unused_inputs() -> tuple[_kernels.PixelModel, _kernels.PixelState]:
                                 0.0, False, key, key, key, key, key, np.zeros(4, np.uint64))
     return model, _kernels.PixelState(np.zeros((1, 64), np.uint64), np.zeros((1, 64), np.int64),
                                       np.zeros((4, 1, 64)))
-
-
-class _RecycledOutput:
-    """Output arrays for successive chunks, reused once the consumer lets go.
-
-    A fresh array of tens of MB costs about 10 ms of page faults on first
-    touch (measured on the 2-core VM), a sizeable share of a chunk's kernel
-    time.  A consumer that drops each chunk before asking for the next (the
-    streaming case: writing to a file, reducing) gets the same memory back;
-    an array still referenced anywhere else (a kept chunk, or any view of
-    it) is never handed out again.  At most ``keep`` arrays are remembered
-    (four: a stream and its clean twin, for the chunk a `for` loop still
-    holds and the one before).
-    """
-
-    def __init__(self, keep: int = 4):
-        self.keep = keep
-        self._arrays: list[np.ndarray] = []
-
-    def get(self, shape: tuple[int, ...]) -> np.ndarray:
-        for i in range(len(self._arrays)):
-            # references: the list entry and getrefcount's argument, nothing else
-            if self._arrays[i].shape == shape and sys.getrefcount(self._arrays[i]) == 2:
-                return self._arrays[i]
-        fresh = np.empty(shape, np.uint64)
-        self._arrays = [*self._arrays[-(self.keep - 1):], fresh] if self.keep > 1 else [fresh]
-        return fresh
 
 
 def _charge_constants(noise, h: int, w: int, full_scale_rate: float):

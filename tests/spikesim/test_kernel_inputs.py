@@ -1,5 +1,7 @@
 """The kernel's typed inputs: one numba type per bundle, whatever the noise."""
 
+import sys
+
 import numba
 import numpy as np
 import pytest
@@ -53,3 +55,52 @@ def test_schedule_is_a_run_schedule_of_fixed_dtypes():
     pieces = [r for r in range(len(runs.kind)) if runs.kind[r] == _kernels.RUN_PIECES]
     assert [int(runs.start[r]) for r in pieces] == [2]
     assert runs.p1[pieces[0]] - runs.p0[pieces[0]] == 2
+
+
+def test_array_pool_reuses_by_shape_and_dtype_within_its_budget():
+    from spikesim._memory import ArrayPool
+
+    pool = ArrayPool(max_bytes=3 << 20, min_bytes=1 << 10)
+    a = pool.take((1024, 128), np.float64)  # 1 MiB, fresh
+    pool.give(a)
+    assert pool.take((1024, 128), np.int64) is not a  # other dtype: fresh
+    assert pool.take((1024, 128), np.float64) is a
+    pool.give(np.ones(4))  # too small to keep
+    assert pool.take((4,), np.float64, zeros=True).sum() == 0
+    arrays = [np.empty((1024, 128)) for _ in range(4)]
+    pool.give(*arrays)  # 4 MiB over a 3 MiB budget: the oldest is dropped
+    kept = [pool.take((1024, 128), np.float64) for _ in range(4)]
+    assert [any(k is a for a in arrays[1:]) for k in kept] == [True, True, True, False]
+
+
+@pytest.mark.parametrize("noise", [None, ss.noise.PhysicalNoise(reset_charge_loss=0.01)])
+def test_pooled_memory_from_earlier_runs_changes_no_bit(noise):
+    """Runs take their state from a pool of earlier runs' arrays: poisoned state
+    arrays and a reused key buffer (width 70: padding lanes) give the bits of a
+    run on fresh memory."""
+    sim = sys.modules["spikesim.simulate"]
+    rng = np.random.default_rng(5)
+    scene = ss.scenes.Static(rng.random((9, 70, 3)).astype(np.float32))
+    sensor = ss.Sensor(height=9, width=70, cfa="RGGB", noise=noise, reset="subtract")
+    pools = (sim._STATE_POOL, sim._KEY_POOL)
+    for pool in pools:
+        pool.clear()
+        pool.min_bytes = 0  # keep this test's small arrays
+    try:
+        fresh = ss.simulate(scene, sensor, 50, seed=2, clean_twin=True).unpack()
+        keys = sim._KEY_POOL.take((9, 2, 1, 64), np.float32)  # the run's, given back
+        assert keys[:, 1, 0, :6].all() and not keys[:, 1, 0, 6:].any()  # x = 64..69, padding
+        sim._KEY_POOL.give(keys)
+        sim._STATE_POOL.clear()
+        for dtype in (np.uint64, np.int64):
+            for _ in range(2):
+                sim._STATE_POOL.give(np.full((9, 128), 0x7F, dtype))
+        sim._STATE_POOL.give(np.full((4, 9, 128), 3.0))
+        again = ss.simulate(scene, sensor, 50, seed=2, clean_twin=True)
+        third = ss.simulate(scene, sensor, 50, seed=2, clean_twin=True)
+    finally:
+        for pool in pools:
+            pool.min_bytes = 1 << 16
+            pool.clear()
+    np.testing.assert_array_equal(again.unpack(), fresh)
+    np.testing.assert_array_equal(third.unpack(), fresh)
