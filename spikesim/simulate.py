@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
+from collections import OrderedDict
 from collections.abc import Iterator, Sequence
 
 import numpy as np
@@ -295,7 +297,35 @@ def _charge_constants(noise, h: int, w: int, full_scale_rate: float):
     ``charge_sd`` (padded to whole 64-pixel blocks; padding lanes never fire;
     ``electrons`` and ``charge_sd`` −1 where the source is off).  Without a physical
     fixed pattern every row is the same, so each is a single (1, Wp) row the
-    kernel shares between rows (nothing of size H·W built per call)."""
+    kernel shares between rows (nothing of size H·W built per call).  A chip's
+    fixed pattern depends on the noise model and the size only (not on the run's
+    seed), so the last few are kept (:data:`_PATTERNS`): drawing one costs more
+    than a short run of a large sensor (70 ms at 1000×1000 on the 2-core VM).
+    The kernel only reads these arrays."""
+    if not isinstance(noise, PhysicalNoise):
+        return _build_charge_constants(noise, h, w, full_scale_rate)
+    key = (noise, h, w, float(full_scale_rate))
+    with _PATTERNS_LOCK:
+        if key in _PATTERNS:
+            _PATTERNS.move_to_end(key)
+            return _PATTERNS[key]
+    built = _build_charge_constants(noise, h, w, full_scale_rate)
+    if sum(a.nbytes for a in built) <= _PATTERNS_BYTES:
+        with _PATTERNS_LOCK:
+            _PATTERNS[key] = built
+            while len(_PATTERNS) > _PATTERNS_KEPT:
+                _PATTERNS.popitem(last=False)
+    return built
+
+
+#: Charge constants of the last physical-noise chips (see ``_charge_constants``).
+_PATTERNS: OrderedDict = OrderedDict()
+_PATTERNS_KEPT = 2
+_PATTERNS_BYTES = 128 << 20
+_PATTERNS_LOCK = threading.Lock()
+
+
+def _build_charge_constants(noise, h: int, w: int, full_scale_rate: float):
     wp = _padded_width(w)
     if not isinstance(noise, PhysicalNoise):
         gain = np.zeros((1, wp))

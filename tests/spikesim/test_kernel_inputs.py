@@ -104,3 +104,19 @@ def test_pooled_memory_from_earlier_runs_changes_no_bit(noise):
             pool.clear()
     np.testing.assert_array_equal(again.unpack(), fresh)
     np.testing.assert_array_equal(third.unpack(), fresh)
+
+
+def test_fixed_pattern_is_drawn_once_per_chip_and_size():
+    sim = sys.modules["spikesim.simulate"]
+    sim._PATTERNS.clear()
+    noise = ss.noise.PhysicalNoise()
+    first = sim._charge_constants(noise, 6, 70, 0.6)
+    assert sim._charge_constants(ss.noise.PhysicalNoise(), 6, 70, 0.6) is first
+    other = sim._charge_constants(noise.replace(prnu=0.05), 6, 70, 0.6)
+    assert other is not first and not np.array_equal(other[0], first[0])
+    assert sim._charge_constants(noise, 6, 71, 0.6) is not first
+    assert len(sim._PATTERNS) == 2  # the oldest of three is dropped
+    sim._PATTERNS.clear()
+    rebuilt = sim._charge_constants(noise, 6, 70, 0.6)
+    for a, b in zip(first, rebuilt, strict=True):
+        np.testing.assert_array_equal(a, b)
