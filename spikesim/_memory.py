@@ -72,18 +72,28 @@ class RecycledOutput:
     an array still referenced anywhere else (a kept chunk, or any view of
     it) is never handed out again.  At most ``keep`` arrays are remembered
     (four: a stream and its clean twin, for the chunk a `for` loop still
-    holds and the one before).
+    holds and the one before).  With a ``pool``, fresh arrays come from it and
+    :meth:`release` gives the unheld ones back at the end of the run.
     """
 
-    def __init__(self, keep: int = 4):
+    def __init__(self, keep: int = 4, pool: ArrayPool | None = None):
         self.keep = keep
+        self._pool = pool
         self._arrays: list[np.ndarray] = []
+
+    def release(self, pool: ArrayPool) -> None:
+        """At the end of a run: give ``pool`` the arrays nobody holds any more
+        (``simulate`` copies every chunk out, so a later run gets them all)."""
+        free = [a for a in self._arrays if sys.getrefcount(a) == 3]  # list, a, argument
+        self._arrays = []
+        pool.give(*free)
 
     def get(self, shape: tuple[int, ...]) -> np.ndarray:
         for i in range(len(self._arrays)):
             # references: the list entry and getrefcount's argument, nothing else
             if self._arrays[i].shape == shape and sys.getrefcount(self._arrays[i]) == 2:
                 return self._arrays[i]
-        fresh = np.empty(shape, np.uint64)
+        fresh = self._pool.take(shape, np.uint64) if self._pool is not None else np.empty(
+            shape, np.uint64)
         self._arrays = [*self._arrays[-(self.keep - 1):], fresh] if self.keep > 1 else [fresh]
         return fresh

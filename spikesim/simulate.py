@@ -43,8 +43,9 @@ if sys.byteorder != "little":  # pragma: no cover - every supported target is li
 #: original sampler, kept as the statistical tests' reference).
 _SHOT_SAMPLERS = ("event", "readout")
 #: Arrays private to a run, kept for the next run of the same size (``spikesim._memory``).
-_STATE_POOL = ArrayPool(128 << 20)
+_STATE_POOL = ArrayPool(96 << 20)
 _KEY_POOL = ArrayPool(64 << 20)
+_OUTPUT_POOL = ArrayPool(64 << 20)  # chunk outputs nobody held after the run
 _RESET_CODES = {"modulo": _kernels.RESET_MODULO, "subtract": _kernels.RESET_SUBTRACT,
                 "zero": _kernels.RESET_ZERO}
 
@@ -208,7 +209,7 @@ class SimulationRun:
         max_keys = max(2, CHUNK_KEYFRAME_BYTES // (h * wp * 4))
         key_buffer = np.zeros((h, wp // 64, 0, 64), np.float32)
         cache: dict[float, np.ndarray] = {}
-        buffers = RecycledOutput()
+        buffers = RecycledOutput(pool=_OUTPUT_POOL)
         try:
             n0 = 0
             while n0 < self.n_readouts:
@@ -235,6 +236,7 @@ class SimulationRun:
                 bar.close()
             _STATE_POOL.give(*noisy_state, *(clean_state if self.clean_twin else ()))
             _KEY_POOL.give(key_buffer)
+            buffers.release(_OUTPUT_POOL)
 
 
 def _kernel_inputs(sensor: Sensor, seed: int, noise, event: bool = True,
@@ -422,5 +424,6 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
             clean[sl] = chunk.clean_packed
         gts.append(chunk.gt)
         idx.append(chunk.gt_index)
+        chunk = None  # copied: the run may reuse its memory
     gt = np.concatenate(gts) if gts else np.zeros((0, h, sensor.width, 3), np.float32)
     return SpikeStream(packed, run.meta, clean, gt, np.concatenate(idx).astype(np.int64))

@@ -120,3 +120,23 @@ def test_fixed_pattern_is_drawn_once_per_chip_and_size():
     rebuilt = sim._charge_constants(noise, 6, 70, 0.6)
     for a, b in zip(first, rebuilt, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_chunks_a_consumer_keeps_are_never_reused_by_later_runs():
+    sim = sys.modules["spikesim.simulate"]
+    scene = ss.scenes.Static(np.random.default_rng(1).random((8, 64, 3)).astype(np.float32))
+    sensor = ss.Sensor(height=8, width=64, cfa="RGGB", noise=ss.noise.PaperNoise(sigma_g=5.0))
+    sim._OUTPUT_POOL.min_bytes = 0
+    try:
+        kept = list(ss.simulate_chunks(scene, sensor, 40, seed=1, chunk_readouts=10))
+        copies = [c.packed.copy() for c in kept]
+        for seed in (2, 3):  # later runs of the same size, copied out by simulate()
+            ss.simulate(scene, sensor, 40, seed=seed, chunk_readouts=10)
+        assert len(sim._OUTPUT_POOL._free) > 0  # simulate()'s outputs were recycled
+        for chunk, copy in zip(kept, copies, strict=True):
+            np.testing.assert_array_equal(chunk.packed, copy)
+        again = ss.simulate(scene, sensor, 40, seed=1, chunk_readouts=10).packed
+        np.testing.assert_array_equal(again, np.concatenate(copies))
+    finally:
+        sim._OUTPUT_POOL.min_bytes = 1 << 16
+        sim._OUTPUT_POOL.clear()
