@@ -48,6 +48,7 @@ import numpy as np
 from numba import njit
 
 from spikesim._poisson import LAMBDA_MAX, poisson
+from spikesim._simd import lowest_bit_index
 from spikesim.rng import log_positive, normal, pixel_bits, readout_key, uniform
 
 BLOCK = 64
@@ -207,31 +208,25 @@ def event_step(level, gain, offset, electrons, ev, reset, jitter, loss, keys, pi
     never fire."""
     wait = ev[WAIT]
     after = ev[AFTER_RESET]
-    fired = 0
+    mask = np.uint64(0)
     for lane in range(BLOCK):
         q = gain[lane] * level[lane] + offset[lane]
         lam = min(q * electrons[lane], LAMBDA_MAX) * (1.0 - loss * after[lane])
         r = wait[lane] - lam
         wait[lane] = r
-        fired += 1 if r <= 0.0 else 0
-    mask = np.uint64(0)
-    if fired == 0:
-        if loss > 0.0:
-            for lane in range(BLOCK):
-                after[lane] = 0.0
-        return mask
-    for lane in range(BLOCK):
-        r = wait[lane]
-        hit = r <= 0.0
-        after[lane] = 1.0 if hit else 0.0
-        if hit:
-            mask |= _U1 << np.uint64(lane)
-            w, d, c = fire_cycle(r, ev[NEED, lane], ev[CYCLE, lane], electrons[lane], reset,
-                                 jitter, keys[0], keys[1], keys[2], keys[3],
-                                 pix0 + np.uint64(lane))
-            wait[lane] = w
-            ev[NEED, lane] = d
-            ev[CYCLE, lane] = c
+        mask |= np.uint64(r <= 0.0) << np.uint64(lane)
+    if loss > 0.0:
+        for lane in range(BLOCK):
+            after[lane] = np.float64((mask >> np.uint64(lane)) & _U1)
+    m = mask
+    while m != 0:  # the lanes that fired, lowest first
+        lane = np.int64(lowest_bit_index(m))
+        m &= m - _U1
+        w, d, c = fire_cycle(wait[lane], ev[NEED, lane], ev[CYCLE, lane], electrons[lane], reset,
+                             jitter, keys[0], keys[1], keys[2], keys[3], pix0 + np.uint64(lane))
+        wait[lane] = w
+        ev[NEED, lane] = d
+        ev[CYCLE, lane] = c
     return mask
 
 
