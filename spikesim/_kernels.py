@@ -219,24 +219,22 @@ def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, f, zero):
 
 @njit(inline="always", **_opts)
 def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
-                 f, g, o, zero):
+                 f, zero):
     """No per-readout noise, charge < 1 θ, empty whole part, linear radiance:
     one vector step per readout (:func:`spikesim._simd.linear_carry_add64`,
     or its ``_zero`` twin for zero reset).
-    ``ia``, ``di`` are contiguous already; ``f, g, o`` are contiguous scratch
-    copies of the state, gain and offset."""
+    ``ia``, ``di``, ``gain``, ``offset`` are contiguous already; ``f`` is a
+    contiguous scratch copy of the state."""
     for lane in range(BLOCK):
         f[lane] = frac[lane]
-        g[lane] = gain[lane]
-        o[lane] = offset[lane]
     if zero:
         for n in range(n0, n1):
             phi = (np.float64(n) + 0.5 - t_a) * inv_span
-            out[n - t_off, y, blk] = linear_carry_add64_zero(f, ia, di, g, o, phi, 0)
+            out[n - t_off, y, blk] = linear_carry_add64_zero(f, ia, di, gain, offset, phi, 0)
     else:
         for n in range(n0, n1):
             phi = (np.float64(n) + 0.5 - t_a) * inv_span
-            out[n - t_off, y, blk] = linear_carry_add64(f, ia, di, g, o, phi, 0)
+            out[n - t_off, y, blk] = linear_carry_add64(f, ia, di, gain, offset, phi, 0)
     for lane in range(BLOCK):
         frac[lane] = f[lane]
 
@@ -260,19 +258,18 @@ def _paper_fits(n0, n1, t_a, inv_span, ia, di, gain, offset, paper_sg2, paper_sp
 
 @njit(**_opts)  # a call per run: inlined, it slowed the noise-free paths (code layout)
 def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
-                model, pkeys, level, z, sd, bits, f, g, o, zero):
+                model, pkeys, level, z, sd, bits, f, zero):
     """Paper-mode noise only, every noisy charge < 1 θ, empty whole part
     (:func:`_paper_fits`): per readout the block's normal deviates
     (:func:`spikesim.rng.normals_into`) and one vector step
     (:func:`spikesim._simd.paper_carry_add64`), the same values as
-    :func:`_general_step`.  ``level, z, sd, bits, f, g, o`` are contiguous scratch."""
+    :func:`_general_step`.  ``level, z, sd, bits, f`` are contiguous scratch
+    (``gain``, ``offset`` contiguous already)."""
     paper_sg2 = model.paper_sg2
     paper_sp2 = model.paper_sp2
     key_paper = model.key_paper
     for lane in range(BLOCK):
         f[lane] = frac[lane]
-        g[lane] = gain[lane]
-        o[lane] = offset[lane]
     sd_const = np.sqrt(paper_sg2) * (1.0 / 255.0)
     moving = 0
     for lane in range(BLOCK):
@@ -293,9 +290,9 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
                 sd[lane] = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * level[lane]) * (1.0 / 255.0)
         normals_into(readout_key(key_paper, n), pkeys, z, bits)
         if zero:
-            out[n - t_off, y, blk] = paper_carry_add64_zero(f, level, z, sd, g, o, 0)
+            out[n - t_off, y, blk] = paper_carry_add64_zero(f, level, z, sd, gain, offset, 0)
         else:
-            out[n - t_off, y, blk] = paper_carry_add64(f, level, z, sd, g, o, 0)
+            out[n - t_off, y, blk] = paper_carry_add64(f, level, z, sd, gain, offset, 0)
     for lane in range(BLOCK):
         frac[lane] = f[lane]
 
@@ -402,7 +399,7 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     block and one accumulator set (``model``, a :class:`PixelModel`; its state
     ``frac``, ``whole`` and ``ev`` are the block's contiguous copies).
 
-    ``scratch_f`` (16, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
+    ``scratch_f`` (14, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
     caller's work rows (allocated once per image row, not per block).
     ``model.fast_ok``: no per-readout noise; ``model.paper_fast_ok``: paper-mode
     noise only.  Either path is taken for a run only where every lane's whole part
@@ -415,15 +412,13 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     ia = scratch_f[0]
     di = scratch_f[1]
     ibuf = scratch_f[2]
-    s_g = scratch_f[3]
-    s_o = scratch_f[4]
-    zbuf = scratch_f[5]
-    sdbuf = scratch_f[6]
-    shot_work = scratch_f[7:12]
-    gain = scratch_f[12]
-    offset = scratch_f[13]
-    electrons = scratch_f[14]
-    charge_sd = scratch_f[15]
+    zbuf = scratch_f[3]
+    sdbuf = scratch_f[4]
+    shot_work = scratch_f[5:10]
+    gain = scratch_f[10]
+    offset = scratch_f[11]
+    electrons = scratch_f[12]
+    charge_sd = scratch_f[13]
     s_u1 = scratch_u[0]
     s_u2 = scratch_u[1]
     bbuf = scratch_u[2]
@@ -503,11 +498,11 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
             _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, s_u1, s_u2, zero)
         elif use_fast:
             _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
-                         s_u1, s_g, s_o, zero)
+                         s_u1, zero)
         elif paper_fast_ok and fits and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset,
                                                     model.paper_sg2, model.paper_sp2):
             _fast_paper(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
-                        model, pkeys, ibuf, zbuf, sdbuf, bbuf, s_u1, s_g, s_o, zero)
+                        model, pkeys, ibuf, zbuf, sdbuf, bbuf, s_u1, zero)
         else:
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
@@ -587,7 +582,7 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init,
     frac = state.frac
     whole = state.whole
     aux = state.aux
-    scratch_f = np.empty((16, BLOCK), np.float64)
+    scratch_f = np.empty((14, BLOCK), np.float64)
     scratch_u = np.empty((4, BLOCK), np.uint64)
     ev = np.zeros((4, BLOCK), np.float64)  # the block's event state, contiguous
     f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous

@@ -274,11 +274,11 @@ def _kernel_inputs(sensor: Sensor, seed: int, noise, event: bool = True,
             rng.STREAM_WAIT, rng.STREAM_RESIDUAL, rng.STREAM_REFILL, rng.STREAM_JITTER)],
             np.uint64),
     )
-    take = pool.take if pool is not None else (lambda shape, dtype: np.empty(shape, dtype))
+    pool = pool if pool is not None else ArrayPool(0)  # an empty pool: fresh arrays
     state = _kernels.PixelState(  # initialised by the kernel's first call
-        frac=take((h, wp), np.uint64),
-        whole=take((h, wp), np.int64),
-        aux=take((4, h, wp), np.float64) if event or loss > 0 else np.zeros((4, 1, 64)),
+        frac=pool.take((h, wp), np.uint64),
+        whole=pool.take((h, wp), np.int64),
+        aux=pool.take((4, h, wp), np.float64) if event or loss > 0 else np.zeros((4, 1, 64)),
     )
     return model, state
 
