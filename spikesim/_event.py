@@ -231,15 +231,15 @@ def event_step(level, gain, offset, electrons, ev, reset, jitter, loss, keys, pi
 
 
 @njit(inline="always", **_opts)
-def init_event_row(ev_row, frac_row, electrons_row, key_wait, y, width):
-    """Event state of row ``y`` from its initial accumulator ``frac_row``
-    (units of 2⁻⁶⁴ θ): ``D = E·(1 − frac·2⁻⁶⁴)``, cycle 0, its wait, no
-    charge loss pending.  ``ev_row`` is (4, Wp) (``ev[:, y]``)."""
-    base = np.uint64(y * width)
-    for x in range(frac_row.shape[0]):
-        e = electrons_row[x]
-        d = e * (1.0 - np.float64(frac_row[x]) * 2.0**-64)
-        ev_row[NEED, x] = d
-        ev_row[CYCLE, x] = 0.0
-        ev_row[AFTER_RESET, x] = 0.0
-        ev_row[WAIT, x] = cycle_wait(d, key_wait, np.uint64(0), base + np.uint64(x))
+def init_event_block(ev, frac, electrons_row, x0, key_wait, pix0):
+    """Event state ``ev`` (4, 64) of the block whose first lane is pixel
+    ``pix0`` (column ``x0`` of ``electrons_row``) from its initial accumulator
+    ``frac`` (64 lanes, units of 2⁻⁶⁴ θ): ``D = E·(1 − frac·2⁻⁶⁴)``, cycle 0,
+    its wait, no charge loss pending."""
+    for lane in range(BLOCK):
+        e = electrons_row[x0 + lane]
+        d = e * (1.0 - np.float64(frac[lane]) * 2.0**-64)
+        ev[NEED, lane] = d
+        ev[CYCLE, lane] = 0.0
+        ev[AFTER_RESET, lane] = 0.0
+        ev[WAIT, lane] = cycle_wait(d, key_wait, np.uint64(0), pix0 + np.uint64(lane))

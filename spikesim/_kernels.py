@@ -53,15 +53,16 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from spikesim._event import AFTER_RESET, event_step, init_event_row
+from spikesim._event import AFTER_RESET, event_step, init_event_block
 from spikesim._poisson import _shot_noise_block
 from spikesim._simd import (
-    carry_add64,
-    carry_add64_zero,
-    linear_carry_add64,
-    linear_carry_add64_zero,
+    carry_run64,
+    carry_run64_zero,
+    linear_carry_run64,
+    linear_carry_run64_zero,
     paper_carry_add64,
     paper_carry_add64_zero,
+    store_word,
 )
 from spikesim.rng import (
     NORMAL_ABS_MAX,
@@ -157,6 +158,13 @@ class PixelState(NamedTuple):
 _U1 = np.uint64(1)
 
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
+#: The functions called per row, block or run: no reference counting.  numba
+#: otherwise increments and decrements the count of every array argument (those
+#: inside the named tuples too) at each call, atomically; on arrays the threads
+#: share that cost about 0.6 µs per call of :func:`_block_runs`, more than a
+#: 1-readout block's whole work (measured).  These functions allocate nothing and
+#: keep no array beyond the call, so they need no counts.
+_inner = dict(_opts, _nrt=False)
 
 
 @njit(inline="always", **_opts)
@@ -196,47 +204,56 @@ def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, 
 
 
 @njit(inline="always", **_opts)
-def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, f, zero):
+def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, zero):
     """Constant charge < 1 θ, empty whole part: a 64-lane integer add whose
-    carry bits are the spikes (:func:`spikesim._simd.carry_add64`; with
-    ``zero`` reset the carrying lanes are cleared).  Modulo and subtract reset
-    are the same step here (the whole part stays 0).
-
-    Works on scratch copies of the state (``qf``, ``f``, contiguous).
-    """
+    carry bits are the spikes, the whole run in one call with the accumulator
+    in registers (:func:`spikesim._simd.carry_run64`; with ``zero`` reset the
+    carrying lanes are cleared).  Modulo and subtract reset are the same step
+    here (the whole part stays 0).  ``frac`` is the block's contiguous state,
+    ``qf`` a scratch row."""
     for lane in range(BLOCK):
         qf[lane] = np.uint64(qconst[lane] * TWO64)
-        f[lane] = frac[lane]
+    first, stride, nbytes = _word_at(out, n0 - t_off, y, blk)
     if zero:
-        for n in range(n0, n1):
-            out[n - t_off, y, blk] = carry_add64_zero(f, qf, 0)
+        carry_run64_zero(frac, qf, out, first, stride, nbytes, n1 - n0)
     else:
-        for n in range(n0, n1):
-            out[n - t_off, y, blk] = carry_add64(f, qf, 0)
-    for lane in range(BLOCK):
-        frac[lane] = f[lane]
+        carry_run64(frac, qf, out, first, stride, nbytes, n1 - n0)
 
 
 @njit(inline="always", **_opts)
-def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
-                 f, zero):
+def _word_at(out, t, y, blk):
+    """Where block ``blk`` of row ``y`` of readout ``t`` goes in ``out`` (the
+    packed (T, H, ⌈W/8⌉) uint8 bits, C-contiguous): its first byte (flat
+    index), the step in bytes from one readout to the next, and its number of
+    bytes in the row (8, or fewer for the row's last block)."""
+    row_bytes = out.shape[2]
+    stride = out.shape[1] * row_bytes
+    return (t * stride + y * row_bytes + 8 * blk, stride,
+            min(np.int64(8), row_bytes - 8 * np.int64(blk)))
+
+
+@njit(inline="always", **_opts)
+def _put(out, t, y, blk, word):
+    """Write the 64 spike bits ``word`` of block ``blk``, row ``y``, readout
+    ``t`` into the packed ``out`` (:func:`_word_at`)."""
+    first, _, nbytes = _word_at(out, t, y, blk)
+    store_word(out, first, word, nbytes)
+
+
+@njit(inline="always", **_opts)
+def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk, zero):
     """No per-readout noise, charge < 1 θ, empty whole part, linear radiance:
-    one vector step per readout (:func:`spikesim._simd.linear_carry_add64`,
-    or its ``_zero`` twin for zero reset).
-    ``ia``, ``di``, ``gain``, ``offset`` are contiguous already; ``f`` is a
-    contiguous scratch copy of the state."""
-    for lane in range(BLOCK):
-        f[lane] = frac[lane]
+    the whole run in one vector call with the accumulator in registers
+    (:func:`spikesim._simd.linear_carry_run64`, or its ``_zero`` twin for zero
+    reset).  ``ia``, ``di``, ``gain``, ``offset`` and the state ``frac`` are
+    the block's contiguous rows."""
+    first, stride, nbytes = _word_at(out, n0 - t_off, y, blk)
     if zero:
-        for n in range(n0, n1):
-            phi = (np.float64(n) + 0.5 - t_a) * inv_span
-            out[n - t_off, y, blk] = linear_carry_add64_zero(f, ia, di, gain, offset, phi, 0)
+        linear_carry_run64_zero(frac, ia, di, gain, offset, n0, t_a, inv_span, out, first,
+                                stride, nbytes, n1 - n0)
     else:
-        for n in range(n0, n1):
-            phi = (np.float64(n) + 0.5 - t_a) * inv_span
-            out[n - t_off, y, blk] = linear_carry_add64(f, ia, di, gain, offset, phi, 0)
-    for lane in range(BLOCK):
-        frac[lane] = f[lane]
+        linear_carry_run64(frac, ia, di, gain, offset, n0, t_a, inv_span, out, first, stride,
+                           nbytes, n1 - n0)
 
 
 @njit(inline="always", **_opts)
@@ -256,20 +273,18 @@ def _paper_fits(n0, n1, t_a, inv_span, ia, di, gain, offset, paper_sg2, paper_sp
     return too_big == 0
 
 
-@njit(**_opts)  # a call per run: inlined, it slowed the noise-free paths (code layout)
+@njit(**_inner)  # a call per run: inlined, it slowed the noise-free paths (code layout)
 def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk,
-                model, pkeys, level, z, sd, bits, f, zero):
+                model, pkeys, level, z, sd, bits, zero):
     """Paper-mode noise only, every noisy charge < 1 θ, empty whole part
     (:func:`_paper_fits`): per readout the block's normal deviates
     (:func:`spikesim.rng.normals_into`) and one vector step
     (:func:`spikesim._simd.paper_carry_add64`), the same values as
-    :func:`_general_step`.  ``level, z, sd, bits, f`` are contiguous scratch
-    (``gain``, ``offset`` contiguous already)."""
+    :func:`_general_step`.  ``level, z, sd, bits`` are contiguous scratch
+    (``gain``, ``offset`` and the state ``frac`` contiguous already)."""
     paper_sg2 = model.paper_sg2
     paper_sp2 = model.paper_sp2
     key_paper = model.key_paper
-    for lane in range(BLOCK):
-        f[lane] = frac[lane]
     sd_const = np.sqrt(paper_sg2) * (1.0 / 255.0)
     moving = 0
     for lane in range(BLOCK):
@@ -290,11 +305,10 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
                 sd[lane] = np.sqrt(paper_sg2 + paper_sp2 * 255.0 * level[lane]) * (1.0 / 255.0)
         normals_into(readout_key(key_paper, n), pkeys, z, bits)
         if zero:
-            out[n - t_off, y, blk] = paper_carry_add64_zero(f, level, z, sd, gain, offset, 0)
+            word = paper_carry_add64_zero(frac, level, z, sd, gain, offset, 0)
         else:
-            out[n - t_off, y, blk] = paper_carry_add64(f, level, z, sd, gain, offset, 0)
-    for lane in range(BLOCK):
-        frac[lane] = f[lane]
+            word = paper_carry_add64(frac, level, z, sd, gain, offset, 0)
+        _put(out, n - t_off, y, blk, word)
 
 
 @njit(inline="always", **_opts)
@@ -392,14 +406,14 @@ def _pixel_rows(model, y, x0, gain, offset, electrons, charge_sd):
         charge_sd[lane] = model.charge_sd[sy, x0 + lane]
 
 
-@njit(**_opts)
+@njit(**_inner)
 def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                 scratch_f, scratch_u, ev):
     """All runs of one chunk (``runs``, a :class:`RunSchedule`) for one 64-pixel
     block and one accumulator set (``model``, a :class:`PixelModel`; its state
     ``frac``, ``whole`` and ``ev`` are the block's contiguous copies).
 
-    ``scratch_f`` (14, 64) float64 and ``scratch_u`` (4, 64) uint64 are the
+    ``scratch_f`` (14, 64) float64 and ``scratch_u`` (3, 64) uint64 are the
     caller's work rows (allocated once per image row, not per block).
     ``model.fast_ok``: no per-readout noise; ``model.paper_fast_ok``: paper-mode
     noise only.  Either path is taken for a run only where every lane's whole part
@@ -419,10 +433,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     offset = scratch_f[11]
     electrons = scratch_f[12]
     charge_sd = scratch_f[13]
-    s_u1 = scratch_u[0]
-    s_u2 = scratch_u[1]
-    bbuf = scratch_u[2]
-    pkeys = scratch_u[3]
+    qbuf = scratch_u[0]
+    bbuf = scratch_u[1]
+    pkeys = scratch_u[2]
     _pixel_rows(model, y, x0, gain, offset, electrons, charge_sd)
     blk = x0 // BLOCK
     reset = model.reset
@@ -439,9 +452,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
             if runs.kind[r] == RUN_PIECES:
                 _pieces_radiance(frames, runs.p0[r], runs.p1[r], runs.piece_a,
                                  runs.piece_b, runs.piece_len, runs.piece_phi, y, x0, ibuf)
-                out[n0 - t_off, y, blk] = event_step(ibuf, gain, offset, electrons, ev, reset,
-                                                     model.jitter, model.loss, model.ev_keys,
-                                                     pix0)
+                _put(out, n0 - t_off, y, blk,
+                     event_step(ibuf, gain, offset, electrons, ev, reset, model.jitter,
+                                model.loss, model.ev_keys, pix0))
                 continue
             t_a = runs.ta[r]
             inv = runs.inv[r]
@@ -450,9 +463,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                 phi = (np.float64(n) + 0.5 - t_a) * inv
                 for lane in range(BLOCK):
                     ibuf[lane] = ia[lane] + di[lane] * phi
-                out[n - t_off, y, blk] = event_step(ibuf, gain, offset, electrons, ev, reset,
-                                                    model.jitter, model.loss, model.ev_keys,
-                                                    pix0)
+                _put(out, n - t_off, y, blk,
+                     event_step(ibuf, gain, offset, electrons, ev, reset, model.jitter,
+                                model.loss, model.ev_keys, pix0))
         return
     fast_ok = model.fast_ok
     paper_fast_ok = model.paper_fast_ok
@@ -462,9 +475,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
         if runs.kind[r] == RUN_PIECES:
             _pieces_radiance(frames, runs.p0[r], runs.p1[r], runs.piece_a, runs.piece_b,
                              runs.piece_len, runs.piece_phi, y, x0, ibuf)
-            out[n0 - t_off, y, blk] = _general_step(
+            _put(out, n0 - t_off, y, blk, _general_step(
                 n0, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width, model,
-                zbuf, bbuf, pkeys, shot_work, after)
+                zbuf, bbuf, pkeys, shot_work, after))
             continue
         t_a = runs.ta[r]
         inv = runs.inv[r]
@@ -495,22 +508,21 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
         if use_fast and static:
             for lane in range(BLOCK):
                 ibuf[lane] = gain[lane] * (ia[lane] + di[lane] * 0.0) + offset[lane]
-            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, s_u1, s_u2, zero)
+            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, qbuf, zero)
         elif use_fast:
-            _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
-                         s_u1, zero)
+            _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk, zero)
         elif paper_fast_ok and fits and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset,
                                                     model.paper_sg2, model.paper_sp2):
             _fast_paper(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
-                        model, pkeys, ibuf, zbuf, sdbuf, bbuf, s_u1, zero)
+                        model, pkeys, ibuf, zbuf, sdbuf, bbuf, zero)
         else:
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
                 for lane in range(BLOCK):
                     ibuf[lane] = ia[lane] + di[lane] * phi
-                out[n - t_off, y, blk] = _general_step(
+                _put(out, n - t_off, y, blk, _general_step(
                     n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width,
-                    model, zbuf, bbuf, pkeys, shot_work, after)
+                    model, zbuf, bbuf, pkeys, shot_work, after))
 
 
 @njit(inline="always", **_opts)
@@ -532,7 +544,7 @@ def _store_state(frac, whole, y, x0, f, w):
 
 
 @njit(parallel=True, **_opts)
-def simulate_chunk(frames, width, t_off, runs, model, state, out, init,
+def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
                    twin, twin_model, twin_state, twin_out):
     """Simulate readouts ``[runs.start[0], runs.stop[-1])`` for every pixel.
 
@@ -551,72 +563,108 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init,
     model : PixelModel
         Charge constants, reset and noise of the (noisy) stream.
     state : PixelState
-        Its accumulator, updated in place.  With ``init`` ≥ 0 it is first
-        initialised here (its content on entry is ignored): ``init`` = 1 a
+        Its accumulator.  ``init`` = −1 carries it on from the previous chunk
+        (read on entry); ``init`` ≥ 0 starts a fresh one, made block by block
+        in the kernel (the content on entry is never read): ``init`` = 1 a
         uniform fraction in [0, 1) θ from ``model.key_init`` (:func:`init_state`'s
-        bits), 0 zero; the event state ``aux`` is derived from it.  ``init`` = −1
-        carries the state on from the previous chunk.
-    out : (T, H, Wp/64) uint64
-        Receives the spikes: bit k of word j of ``out[n − t_off, y]`` is pixel
-        64·j + k, which on a little-endian machine is exactly the little-bit-order
-        packed byte layout (viewed as uint8, rows padded to Wp/8 bytes).
+        bits), 0 zero; the event state is derived from it.
+    out : (T, H, ⌈W/8⌉) uint8, C-contiguous
+        Receives the spikes in the packed little-bit-order layout: pixel x of
+        row y at readout n is bit x % 8 of ``out[n − t_off, y, x // 8]`` (a
+        block's 64 bits are written as one little-endian word, its bytes
+        beyond the row's end left out).
     init : int
         See ``state``.
+    keep : bool
+        Write the state back for a next chunk.  A run's last chunk does not,
+        and a run of one chunk never touches the state arrays at all: the
+        accumulator (16 bytes a pixel) is the largest memory traffic of a short
+        call.
     twin : bool
         Advance the noise-free twin (``twin_model``, ``twin_state``, written to
-        ``twin_out``) in the same pass; when false those are placeholders of the
-        same types.
+        ``twin_out``) in the same pass, from the same initial accumulator; when
+        false those are placeholders of the same types.
     """
     # (no argument may be called ``sched``: numba's parallel loops use that name)
-    for y in prange(frames.shape[0]):
-        _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init,
-                      twin, twin_model, twin_state, twin_out)
+    height = frames.shape[0]
+    rows = max(1, min(8, height // 64))  # rows per task: at least 64 tasks when H ≥ 64
+    for task in prange((height + rows - 1) // rows):
+        scratch_f = np.empty((14, BLOCK), np.float64)
+        scratch_u = np.empty((3, BLOCK), np.uint64)
+        ev = np.zeros((4, BLOCK), np.float64)  # a block's event state
+        f = np.empty(BLOCK, np.uint64)  # a block's accumulator
+        w = np.empty(BLOCK, np.int64)
+        f0 = np.empty(BLOCK, np.uint64)  # its initial fraction, for the twin
+        for y in range(task * rows, min(height, task * rows + rows)):
+            _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init, keep,
+                          twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f,
+                          w, f0)
 
 
-@njit(**_opts)
-def _simulate_row(y, frames, width, t_off, runs, model, state, out, init,
-                  twin, twin_model, twin_state, twin_out):
-    """Row ``y`` of :func:`simulate_chunk` (same arguments), block by block."""
+@njit(**_inner)
+def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
+                  twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f, w, f0):
+    """Row ``y`` of :func:`simulate_chunk` (same arguments), block by block,
+    with the task's contiguous work rows (``scratch_f`` (14, 64), ``scratch_u``
+    (3, 64), the block's event state ``ev`` (4, 64), accumulator ``f``, ``w``
+    and initial fraction ``f0`` (64))."""
     nblk = frames.shape[1]
     use_aux = model.event or model.loss > 0.0
     frac = state.frac
     whole = state.whole
     aux = state.aux
-    scratch_f = np.empty((14, BLOCK), np.float64)
-    scratch_u = np.empty((4, BLOCK), np.uint64)
-    ev = np.zeros((4, BLOCK), np.float64)  # the block's event state, contiguous
-    f = np.empty(BLOCK, np.uint64)  # the block's state, contiguous
-    w = np.empty(BLOCK, np.int64)
-    if init >= 0:
-        _init_row(frac[y], whole[y], model.key_init, y, width, init == 1)
-        if twin:
-            for x in range(frac.shape[1]):
-                twin_state.frac[y, x] = frac[y, x]
-                twin_state.whole[y, x] = whole[y, x]
-        if model.event:
-            ey = y * np.int64(model.electrons.shape[0] > 1)
-            init_event_row(aux[:, y], frac[y], model.electrons[ey], model.ev_keys[0], y, width)
-        elif use_aux:
-            for x in range(frac.shape[1]):
-                aux[AFTER_RESET, y, x] = 0.0
+    init_key = readout_key(model.key_init, 0)
+    ey = y * np.int64(model.electrons.shape[0] > 1)
     for b in range(nblk):
         x0 = b * BLOCK
-        _load_state(frac, whole, y, x0, f, w)
-        if use_aux:
-            for k in range(4):
+        if init >= 0:
+            _init_block(f, w, init_key, y, x0, width, init == 1)
+            if model.event:
+                init_event_block(ev, f, model.electrons[ey], x0, model.ev_keys[0],
+                                 np.uint64(y * width + x0))
+            elif use_aux:
                 for lane in range(BLOCK):
-                    ev[k, lane] = aux[k, y, x0 + lane]
+                    ev[AFTER_RESET, lane] = 0.0  # no charge loss pending
+            if twin:
+                for lane in range(BLOCK):
+                    f0[lane] = f[lane]
+        else:
+            _load_state(frac, whole, y, x0, f, w)
+            if use_aux:
+                for k in range(4):
+                    for lane in range(BLOCK):
+                        ev[k, lane] = aux[k, y, x0 + lane]
         _block_runs(frames, y, x0, width, t_off, runs, model, f, w, out, scratch_f, scratch_u, ev)
-        _store_state(frac, whole, y, x0, f, w)
-        if use_aux:
-            for k in range(4):
-                for lane in range(BLOCK):
-                    aux[k, y, x0 + lane] = ev[k, lane]
+        if keep:
+            _store_state(frac, whole, y, x0, f, w)
+            if use_aux:
+                for k in range(4):
+                    for lane in range(BLOCK):
+                        aux[k, y, x0 + lane] = ev[k, lane]
         if twin:
-            _load_state(twin_state.frac, twin_state.whole, y, x0, f, w)
+            if init >= 0:
+                for lane in range(BLOCK):
+                    f[lane] = f0[lane]
+                    w[lane] = 0
+            else:
+                _load_state(twin_state.frac, twin_state.whole, y, x0, f, w)
             _block_runs(frames, y, x0, width, t_off, runs, twin_model, f, w, twin_out,
                         scratch_f, scratch_u, ev)
-            _store_state(twin_state.frac, twin_state.whole, y, x0, f, w)
+            if keep:
+                _store_state(twin_state.frac, twin_state.whole, y, x0, f, w)
+
+
+@njit(inline="always", **_opts)
+def _init_block(f, w, init_key, y, x0, width, uniform_init):
+    """Initial accumulator of the block at (``y``, ``x0``) into ``f``, ``w``:
+    the bits :func:`_init_row` gives these lanes (``init_key`` =
+    ``readout_key(model.key_init, 0)``)."""
+    base = np.uint64(y * width)
+    for lane in range(BLOCK):
+        x = x0 + lane
+        bits = pixel_bits(init_key, base + np.uint64(x))
+        f[lane] = bits if uniform_init and x < width else np.uint64(0)
+        w[lane] = 0
 
 
 @njit(inline="always", **_opts)

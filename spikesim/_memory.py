@@ -83,17 +83,18 @@ class RecycledOutput:
 
     def release(self, pool: ArrayPool) -> None:
         """At the end of a run: give ``pool`` the arrays nobody holds any more
-        (``simulate`` copies every chunk out, so a later run gets them all)."""
+        (a consumer that dropped every chunk leaves them all to a later run)."""
         free = [a for a in self._arrays if sys.getrefcount(a) == 3]  # list, a, argument
         self._arrays = []
         pool.give(*free)
 
     def get(self, shape: tuple[int, ...]) -> np.ndarray:
+        """A uint8 array of ``shape`` that nobody else holds (its content is stale)."""
         for i in range(len(self._arrays)):
             # references: the list entry and getrefcount's argument, nothing else
             if self._arrays[i].shape == shape and sys.getrefcount(self._arrays[i]) == 2:
                 return self._arrays[i]
-        fresh = self._pool.take(shape, np.uint64) if self._pool is not None else np.empty(
-            shape, np.uint64)
+        fresh = self._pool.take(shape, np.uint8) if self._pool is not None else np.empty(
+            shape, np.uint8)
         self._arrays = [*self._arrays[-(self.keep - 1):], fresh] if self.keep > 1 else [fresh]
         return fresh

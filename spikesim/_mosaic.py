@@ -8,7 +8,7 @@ from numba import njit, prange
 
 from spikesim._kernels import BLOCK
 
-__all__ = ["mosaic_into"]
+__all__ = ["mosaic_grey_into", "mosaic_into"]
 
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
@@ -50,5 +50,32 @@ def mosaic_into(rgb, tile, luma, out, k):
                                            + luma[2] * np.float64(row[3 * x + 2]))
                 else:
                     dst[lane] = row[3 * x + c0 + (x & 1) * dc]
+        bad += row_bad
+    return bad
+
+
+@njit(parallel=True, **_opts)
+def mosaic_grey_into(grey, out, k):
+    """Grey (one-channel) radiance (H, W), C-contiguous, into key ``k`` of
+    ``out``, as :func:`mosaic_into` would sample its three-channel copy: every
+    colour filter sees the grey value, and so does a monochrome sensor (its
+    luma weights sum to 1, so the float64 weighted sum rounds back to the same
+    float32 for every finite value).  Returns the number of values that are
+    NaN, infinite or negative."""
+    h = grey.shape[0]
+    w = grey.shape[1]
+    bad = 0
+    for y in prange(h):
+        row = grey[y]
+        row_bad = 0
+        for x in range(w):
+            v = row[x]
+            ok = (v >= 0.0) & (v * 0.0 == 0.0)
+            row_bad += 0 if ok else 1
+        for b in range((w + BLOCK - 1) // BLOCK):
+            x0 = b * BLOCK
+            dst = out[y, b, k]
+            for lane in range(min(BLOCK, w - x0)):
+                dst[lane] = row[x0 + lane]
         bad += row_bad
     return bad

@@ -4,15 +4,18 @@ numba's auto-vectoriser turns "OR the 64 per-lane carry bits into one word"
 into a chain of masked loads and a horizontal OR; LLVM's own idiom for it is a
 single ``bitcast <64 x i1> to i64``, which x86 lowers to vector compares into
 mask registers (AVX-512) or ``movmsk`` (AVX2/SSE) and other targets lower
-correctly too.  These helpers express one 64-lane block step that way.  Lane
-``k`` maps to bit ``k`` of the result, the little-bit-order packed layout of
-docs/architecture.md, Conventions.
+correctly too.  These helpers express a 64-lane block step that way, and the
+noise-free ones a whole run of readouts with the accumulator kept in vector
+registers (a step per call keeps it in memory, which measured about half as
+fast).  Lane ``k`` maps to bit ``k`` of the result, the little-bit-order
+packed layout of docs/architecture.md, Conventions.
 """
 
 from __future__ import annotations
 
 from llvmlite import ir
 from numba import types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 LANES = 64
@@ -59,50 +62,140 @@ def _add_charge(builder, acc_ptr, charge, zero_reset):
                        zero_reset)
 
 
-def _carry_add(zero_reset):
+def _out_bytes(context, builder, sig, args, k):
+    """The data pointer of the C-contiguous uint8 array argument ``k`` (any
+    rank) and the next three arguments: the byte index ``first`` of the first
+    word, the ``stride`` in bytes from one readout's word to the next, and the
+    ``nbytes`` (1 to 8) of each word that lie in the row."""
+    data = context.make_array(sig.args[k])(context, builder, args[k]).data
+    first, stride, nbytes = (context.cast(builder, args[k + j], sig.args[k + j], types.intp)
+                             for j in (1, 2, 3))
+    return data, first, stride, nbytes
+
+
+def _store_word(builder, data, index, word, nbytes):
+    """Store the low ``nbytes`` (1 to 8) bytes of the i64 ``word`` at byte
+    ``index`` of ``data``, lowest byte first (the little-endian layout): one
+    unaligned 8-byte store, or byte by byte for the last, partial word of a row
+    (whose other bytes belong to the next row)."""
+    i8, i64 = ir.IntType(8), ir.IntType(64)
+    ptr = builder.gep(data, [index])
+    with builder.if_else(builder.icmp_signed("==", nbytes, i64(8)), likely=True) as (full, part):
+        with full:
+            builder.store(word, builder.bitcast(ptr, i64.as_pointer()), align=1)
+        with part:
+            with cgutils.for_range(builder, nbytes) as loop:
+                byte = builder.trunc(builder.lshr(word, builder.mul(loop.index, i64(8))), i8)
+                builder.store(byte, builder.gep(ptr, [loop.index]), align=1)
+
+
+def _run_loop(context, builder, acc_ptr, count, out, charge_at, zero_reset):
+    """``count`` readouts of a 64-lane block with the accumulator held in
+    registers: readout ``k`` adds ``charge_at(k)`` (a <64 x i64> increment),
+    and its carry bits go to the word at byte ``first + k·stride`` of ``out``."""
+    data, first, stride, nbytes = out
+    slot = cgutils.alloca_once(builder, acc_ptr.type.pointee)
+    builder.store(builder.load(acc_ptr, align=8), slot)
+    with cgutils.for_range(builder, count) as loop:
+        old = builder.load(slot)
+        new = builder.add(old, charge_at(loop.index))
+        carry = builder.icmp_unsigned("<", new, old)
+        if zero_reset:
+            new = builder.select(carry, ir.Constant(new.type, None), new)
+        builder.store(new, slot)
+        _store_word(builder, data, builder.add(first, builder.mul(loop.index, stride)),
+                    builder.bitcast(carry, ir.IntType(LANES)), nbytes)
+    builder.store(builder.load(slot), acc_ptr, align=8)
+
+
+def _is_bytes(t) -> bool:
+    return isinstance(t, types.Array) and t.dtype == types.uint8 and t.layout == "C"
+
+
+def _all_int(*ts) -> bool:
+    return all(isinstance(t, types.Integer) for t in ts)
+
+
+@intrinsic
+def store_word(typingctx, out, index, word, nbytes):
+    """``out.flat[index : index + nbytes] = `` the low ``nbytes`` (1 to 8)
+    bytes of the uint64 ``word``, lowest first (``out`` a C-contiguous uint8
+    array): a readout's 64 spike bits of one block, in the packed layout."""
+    if not (_is_bytes(out) and _all_int(index, nbytes) and word == types.uint64):
+        return None
+
+    def codegen(context, builder, sig, args):
+        data = context.make_array(sig.args[0])(context, builder, args[0]).data
+        index_, nbytes_ = (context.cast(builder, args[j], sig.args[j], types.intp) for j in (1, 3))
+        _store_word(builder, data, index_, args[2], nbytes_)
+        return context.get_dummy_value()
+
+    return types.void(out, index, word, nbytes), codegen
+
+
+def _carry_run(zero_reset):
     @intrinsic
-    def carry_add(typingctx, acc, inc, start):
-        if not (_is_u64_array(acc) and _is_u64_array(inc) and isinstance(start, types.Integer)):
+    def carry_run(typingctx, acc, inc, out, first, stride, nbytes, count):
+        if not (_is_u64_array(acc) and _is_u64_array(inc) and _is_bytes(out)
+                and _all_int(first, stride, nbytes, count)):
             return None
 
         def codegen(context, builder, sig, args):
             vec = ir.VectorType(ir.IntType(64), LANES)
-            off = context.cast(builder, args[2], sig.args[2], types.intp)
-            pa = _lanes_ptr(context, builder, sig, args, 0, off, vec)
-            pb = _lanes_ptr(context, builder, sig, args, 1, off, vec)
-            old = builder.load(pa, align=8)
-            new = builder.add(old, builder.load(pb, align=8))
-            return _store_step(builder, pa, old, new, zero_reset)
+            zero = ir.IntType(64)(0)
+            inc_v = builder.load(_lanes_ptr(context, builder, sig, args, 1, zero, vec), align=8)
+            count_ = context.cast(builder, args[6], sig.args[6], types.intp)
+            _run_loop(context, builder, _lanes_ptr(context, builder, sig, args, 0, zero, vec),
+                      count_, _out_bytes(context, builder, sig, args, 2),
+                      lambda k: inc_v, zero_reset)
+            return context.get_dummy_value()
 
-        return types.uint64(acc, inc, start), codegen
+        return types.void(acc, inc, out, first, stride, nbytes, count), codegen
 
-    return carry_add
+    return carry_run
 
 
-def _linear_carry_add(zero_reset):
+def _linear_carry_run(zero_reset):
     @intrinsic
-    def linear_carry_add(typingctx, acc, level, slope, gain, offset, phi, start):
+    def linear_carry_run(typingctx, acc, level, slope, gain, offset, n0, t_a, inv,
+                         out, first, stride, nbytes, count):
         arrays = (level, slope, gain, offset)
         if not (_is_u64_array(acc) and all(_is_f64_array(a) for a in arrays)
-                and isinstance(phi, types.Float) and isinstance(start, types.Integer)):
+                and isinstance(n0, types.Integer) and isinstance(t_a, types.Float)
+                and isinstance(inv, types.Float) and _is_bytes(out)
+                and _all_int(first, stride, nbytes, count)):
             return None
 
         def codegen(context, builder, sig, args):
             uvec = ir.VectorType(ir.IntType(64), LANES)
             fvec = ir.VectorType(ir.DoubleType(), LANES)
-            off = context.cast(builder, args[6], sig.args[6], types.intp)
-            a, d, g, o = (builder.load(_lanes_ptr(context, builder, sig, args, k, off, fvec),
+            zero = ir.IntType(64)(0)
+            a, d, g, o = (builder.load(_lanes_ptr(context, builder, sig, args, k, zero, fvec),
                                        align=8) for k in (1, 2, 3, 4))
-            phi_v = _splat(builder, fvec,
-                           context.cast(builder, args[5], sig.args[5], types.float64))
-            level_now = builder.fadd(a, builder.fmul(d, phi_v))
-            q = builder.fadd(builder.fmul(g, level_now), o)
-            return _add_charge(builder, _lanes_ptr(context, builder, sig, args, 0, off, uvec), q,
-                               zero_reset)
+            n_first = context.cast(builder, args[5], sig.args[5], types.int64)
+            t_a_ = context.cast(builder, args[6], sig.args[6], types.float64)
+            inv_ = context.cast(builder, args[7], sig.args[7], types.float64)
+            scale = ir.Constant(fvec, [2.0**64] * LANES)
+            half = ir.Constant(ir.DoubleType(), 0.5)
 
-        return types.uint64(acc, level, slope, gain, offset, phi, start), codegen
+            def charge_at(k):
+                # phi = (float(n) + 0.5 - t_a) * inv, then (g·(a + d·phi) + o)·2⁶⁴:
+                # the scalar kernel's operations in its order (no contraction)
+                n = builder.sitofp(builder.add(n_first, k), ir.DoubleType())
+                phi = builder.fmul(builder.fsub(builder.fadd(n, half), t_a_), inv_)
+                level_now = builder.fadd(a, builder.fmul(d, _splat(builder, fvec, phi)))
+                q = builder.fadd(builder.fmul(g, level_now), o)
+                return builder.fptoui(builder.fmul(q, scale), uvec)
 
-    return linear_carry_add
+            count_ = context.cast(builder, args[12], sig.args[12], types.intp)
+            _run_loop(context, builder, _lanes_ptr(context, builder, sig, args, 0, zero, uvec),
+                      count_, _out_bytes(context, builder, sig, args, 8), charge_at, zero_reset)
+            return context.get_dummy_value()
+
+        return (types.void(acc, level, slope, gain, offset, n0, t_a, inv, out, first, stride,
+                           nbytes, count), codegen)
+
+    return linear_carry_run
 
 
 def _paper_carry_add(zero_reset):
@@ -131,35 +224,39 @@ def _paper_carry_add(zero_reset):
     return paper_carry_add
 
 
-carry_add64 = _carry_add(False)
-carry_add64.__doc__ = """``acc[start:start+64] += inc[start:start+64]`` (uint64, wrapping).
+carry_run64 = _carry_run(False)
+carry_run64.__doc__ = """``count`` readouts of a constant charge for a 64-lane block:
+    ``acc[:64] += inc[:64]`` (uint64, wrapping) per readout, the accumulator
+    held in registers throughout, and readout ``k``'s 64 carry-out bits
+    (lane ``j`` → bit ``j``) stored as :func:`store_word` does, at byte
+    ``first + k·stride`` of the C-contiguous uint8 ``out`` (flat index), its
+    low ``nbytes`` bytes (8, or fewer for a row's last block).  With the
+    accumulator fraction in units of 2⁻⁶⁴ θ, a carry is a threshold crossing.
+    ``acc`` and ``inc`` must hold 64 contiguous lanes; no bounds check."""
+linear_carry_run64 = _linear_carry_run(False)
+linear_carry_run64.__doc__ = """``count`` readouts of a linear-radiance segment for a 64-lane block.
 
-    Returns the 64 carry-out bits as one uint64 (lane ``k`` → bit ``k``): with
-    the accumulator fraction in units of 2⁻⁶⁴ θ, a carry is a threshold
-    crossing.  Both arrays must be C-contiguous; no bounds check."""
-linear_carry_add64 = _linear_carry_add(False)
-linear_carry_add64.__doc__ = """One readout of a linear-radiance segment for a 64-lane block.
-
-    Lane ``k`` (index ``start + k``) gets the charge
-    ``q = (gain·(level + slope·phi) + offset)·2⁶⁴`` (float64, evaluated in
-    exactly this order, truncated to uint64: the same value as the scalar
-    kernel and the NumPy reference), ``acc += q`` (wrapping), and the carry
-    bits are returned as in :func:`carry_add64`.  Every charge must lie in
-    [0, 1) threshold (the caller checks), else the conversion is undefined."""
+    Readout ``k`` (clock index ``n = n0 + k``, ``phi = (n + ½ − t_a)·inv``)
+    gives lane ``j`` the charge ``q = (gain·(level + slope·phi) + offset)·2⁶⁴``
+    (float64, evaluated in exactly this order, truncated to uint64: the same
+    value as the scalar kernel and the NumPy reference), ``acc += q``
+    (wrapping); its carry bits are stored as in :func:`carry_run64`.  Every
+    charge must lie in [0, 1) threshold (the caller checks), else the
+    conversion is undefined."""
 paper_carry_add64 = _paper_carry_add(False)
 paper_carry_add64.__doc__ = """One readout of paper-mode noise (docs/model.md) for a 64-lane block.
 
     Lane ``k`` (index ``start + k``) gets the noisy level
     ``x = max(level + sd·z, 0)``, the charge ``q = (gain·x + offset)·2⁶⁴``
     (float64, in exactly this order: the scalar kernel's and the NumPy
-    reference's value), ``acc += q`` (wrapping) and its carry bit, returned as
-    in :func:`carry_add64`.  Every charge must lie in [0, 1) threshold (the
-    caller bounds it with the largest normal deviate), else the conversion is
-    undefined."""
-#: The same three steps for zero reset: a lane that carried is cleared to 0
-#: (for charges < 1 θ a carry is exactly a firing, and zero reset drops the residual).
-carry_add64_zero = _carry_add(True)
-linear_carry_add64_zero = _linear_carry_add(True)
+    reference's value), ``acc += q`` (wrapping) and its carry bits, returned
+    as one uint64 (lane ``k`` → bit ``k``; a carry is a threshold crossing).
+    Every charge must lie in [0, 1) threshold (the caller bounds it with the
+    largest normal deviate), else the conversion is undefined."""
+#: The same for zero reset: a lane that carried is cleared to 0 (for charges
+#: < 1 θ a carry is exactly a firing, and zero reset drops the residual).
+carry_run64_zero = _carry_run(True)
+linear_carry_run64_zero = _linear_carry_run(True)
 paper_carry_add64_zero = _paper_carry_add(True)
 
 

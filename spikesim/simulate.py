@@ -25,7 +25,7 @@ from spikesim.bits import packed_width
 from spikesim.cfa import LUMA_WEIGHTS, channel_index
 from spikesim.errors import SpikeSimTypeError, bad_value
 from spikesim.noise import NO_NOISE_PARAMS, PhysicalNoise, fixed_pattern
-from spikesim.scenes.static import validate_radiance
+from spikesim.scenes.static import validate_grey, validate_radiance
 from spikesim.schedule import build_schedule, key_readout_times
 from spikesim.sensor import Sensor
 from spikesim.stream import SpikeChunk, SpikeStream
@@ -120,9 +120,40 @@ class SimulationRun:
         return self.n_readouts
 
     # -- helpers -----------------------------------------------------------
+    def _grey_at(self, t: float) -> np.ndarray | None:
+        """The scene's one-channel radiance at ``t`` (C-contiguous (H, W)
+        float32) when it offers one (the optional ``grey`` of the scene
+        protocol), else None."""
+        grey = getattr(self.scene, "grey", None)
+        g = grey(t) if grey is not None else None
+        if g is None:
+            return None
+        g = np.asarray(g)
+        if g.shape != self.sensor.shape or g.dtype != np.float32 or not g.flags.c_contiguous:
+            g = validate_grey(g, f"scene.grey(t={t:.6g})")
+            if g.shape != self.sensor.shape:
+                raise bad_value(f"scene.grey(t={t:.6g}).shape", g.shape,
+                                f"({self.sensor.height}, {self.sensor.width})")
+        return g
+
+    def _remember_if_frozen(self, rad: np.ndarray) -> None:
+        """Remember a read-only float32 frame that owns its data (a static
+        scene's image) once it is known valid, so the ground truth can copy it
+        without checking it again."""
+        if (rad.dtype == np.float32 and not rad.flags.writeable
+                and rad.base is None and rad.flags.owndata):
+            self._checked = rad
+
     def _sensor_frame_into(self, t: float, out: np.ndarray, k: int) -> None:
         """Radiance at ``t`` through the CFA into key ``k`` of ``out`` (the
-        kernel's blocked key-frame layout), validated."""
+        kernel's blocked key-frame layout), validated.  A grey frame is
+        sampled directly (no three-channel copy)."""
+        grey = self._grey_at(t)
+        if grey is not None:
+            if _mosaic.mosaic_grey_into(grey, out, k) > 0:
+                validate_grey(grey, f"scene.grey(t={t:.6g})")  # raises with the offending value
+            self._remember_if_frozen(grey)
+            return
         rad = np.asarray(self.scene.radiance(t))
         name = f"scene.radiance(t={t:.6g})"
         if rad.shape != (*self.sensor.shape, 3) or rad.dtype.kind != "f":
@@ -134,9 +165,7 @@ class SimulationRun:
             rad = np.ascontiguousarray(rad)
         if _mosaic.mosaic_into(rad, self._tile, LUMA_WEIGHTS, out, k) > 0:
             validate_radiance(rad, name)  # raises with the offending value
-        if (rad.dtype == np.float32 and not rad.flags.writeable
-                and rad.base is None and rad.flags.owndata):
-            self._checked = rad  # read-only and valid (a static scene's image)
+        self._remember_if_frozen(rad)
 
     def _chunk_keys(self, n0: int, max_keys: int) -> tuple[int, np.ndarray, np.ndarray]:
         """End of the chunk starting at readout ``n0``, its key times (s) and the
@@ -183,6 +212,12 @@ class SimulationRun:
         gt = np.zeros((len(sel), self.sensor.height, self.sensor.width, 3), np.float32)
         for i, g in enumerate(sel.tolist()):
             t = (g + 0.5) / clock
+            grey = self._grey_at(t)
+            if grey is not None:
+                if grey is not self._checked:
+                    validate_grey(grey, f"scene.grey(t={t:.6g})")
+                gt[i] = grey[:, :, None]
+                continue
             rad = self.scene.radiance(t)
             if rad is self._checked:  # the read-only frame the key frames just checked
                 gt[i] = rad
@@ -191,6 +226,13 @@ class SimulationRun:
         return gt, sel.copy()
 
     def __iter__(self) -> Iterator[SpikeChunk]:
+        return self._chunks()
+
+    def _chunks(self, into: tuple[np.ndarray, np.ndarray | None] | None = None,
+                ) -> Iterator[SpikeChunk]:
+        """The chunks; with ``into`` (the (T, H, ⌈W/8⌉) uint8 arrays of the whole
+        stream and its clean twin) the kernel writes straight into them and each
+        chunk's bits are views of them, else into recycled chunk arrays."""
         sensor = self.sensor
         h, w = sensor.shape
         wp = _padded_width(w)
@@ -199,7 +241,7 @@ class SimulationRun:
                                             self.shot_sampler == "event", _STATE_POOL)
         clean, clean_state = (_kernel_inputs(sensor, self.seed, None, pool=_STATE_POOL)
                               if self.clean_twin else _unused_inputs())
-        dummy_out = np.zeros((1, 1, 1), np.uint64)
+        dummy_out = np.zeros((1, 1, 1), np.uint8)
         init = 1 if sensor.init == "uniform" else 0  # the kernel's first call initialises
         bar = None
         if self.progress:
@@ -217,17 +259,20 @@ class SimulationRun:
                 key_buffer, cache = self._fill_key_frames(times, key_buffer, cache, max_keys,
                                                           last=n1 >= self.n_readouts)
                 sched = build_schedule(tau, n0, n1)
-                # rows padded to whole 64-bit words; the kernel writes every word
-                out = buffers.get((n1 - n0, h, wp // 64))
-                c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
+                # the kernel writes every byte
+                if into is not None:
+                    out = into[0][n0:n1]
+                    c_out = into[1][n0:n1] if self.clean_twin else dummy_out
+                else:
+                    out = buffers.get((n1 - n0, h, nbytes))
+                    c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
                 _kernels.simulate_chunk(key_buffer, w, n0, sched, noisy, noisy_state, out, init,
+                                        n1 < self.n_readouts,  # keep the state for a next chunk
                                         self.clean_twin, clean, clean_state, c_out)
                 init = -1  # later chunks carry the state on
                 gt, sel = self._ground_truth(n0, n1)
-                packed = out.view(np.uint8)[:, :, :nbytes]
-                c_packed = c_out.view(np.uint8)[:, :, :nbytes] if self.clean_twin else None
-                yield SpikeChunk(n0, packed, c_packed, gt, sel)
-                out = c_out = packed = c_packed = None  # only the consumer may hold them now
+                yield SpikeChunk(n0, out, c_out if self.clean_twin else None, gt, sel)
+                out = c_out = None  # only the consumer may hold them now
                 if bar is not None:
                     bar.update(n1 - n0)
                 n0 = n1
@@ -417,13 +462,8 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
     packed = np.empty((run.n_readouts, h, nb), np.uint8)
     clean = np.empty_like(packed) if run.clean_twin else None
     gts, idx = [], []
-    for chunk in run:
-        sl = slice(chunk.start, chunk.start + chunk.packed.shape[0])
-        packed[sl] = chunk.packed
-        if clean is not None:
-            clean[sl] = chunk.clean_packed
+    for chunk in run._chunks(into=(packed, clean)):  # the kernel writes into packed, clean
         gts.append(chunk.gt)
         idx.append(chunk.gt_index)
-        chunk = None  # copied: the run may reuse its memory
     gt = np.concatenate(gts) if gts else np.zeros((0, h, sensor.width, 3), np.float32)
     return SpikeStream(packed, run.meta, clean, gt, np.concatenate(idx).astype(np.int64))

@@ -7,7 +7,38 @@ import numpy as np
 from spikesim.errors import SpikeSimTypeError, bad_value
 from spikesim.scenes.base import Scene
 
-__all__ = ["Static", "validate_radiance"]
+__all__ = ["Static", "validate_grey", "validate_radiance"]
+
+
+def _check_values(arr: np.ndarray, name: str) -> None:
+    """Raise unless every value of ``arr`` is finite and non-negative."""
+    finite = np.isfinite(arr)
+    if not finite.all():
+        bad = arr[~finite][0]
+        raise bad_value(name, f"contains {bad}", "finite radiance (no NaN or inf)")
+    low = float(arr.min())
+    if low < 0:
+        raise bad_value(name, f"minimum {low}", "non-negative linear radiance")
+
+
+def _check_dtype(arr: np.ndarray, name: str) -> None:
+    if arr.dtype.kind not in "fiu" or arr.dtype == np.bool_:
+        raise SpikeSimTypeError(f"{name} must have a real numeric dtype, got {arr.dtype}")
+
+
+def validate_grey(image: np.ndarray, name: str = "image") -> np.ndarray:
+    """Check a one-channel (grey) radiance image and return it as C-contiguous
+    (H, W) float32 (the same array when it already is one).  Values as in
+    :func:`validate_radiance`."""
+    arr = np.asarray(image)
+    _check_dtype(arr, name)
+    if arr.ndim != 2:
+        raise bad_value(f"{name}.shape", np.shape(image), "(H, W)")
+    if arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise bad_value(f"{name}.shape", arr.shape, "H >= 1 and W >= 1")
+    arr = np.ascontiguousarray(arr, dtype=np.float32)
+    _check_values(arr, name)
+    return arr
 
 
 def validate_radiance(image: np.ndarray, name: str = "image") -> np.ndarray:
@@ -19,22 +50,15 @@ def validate_radiance(image: np.ndarray, name: str = "image") -> np.ndarray:
     reset mode).
     """
     arr = np.asarray(image)
-    if arr.dtype.kind not in "fiu" or arr.dtype == np.bool_:
-        raise SpikeSimTypeError(f"{name} must have a real numeric dtype, got {arr.dtype}")
+    _check_dtype(arr, name)
     if arr.ndim == 2:
-        arr = np.repeat(arr[..., None], 3, axis=2)
+        return np.repeat(validate_grey(arr, name)[..., None], 3, axis=2)
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise bad_value(f"{name}.shape", np.shape(image), "(H, W) or (H, W, 3)")
     if arr.shape[0] < 1 or arr.shape[1] < 1:
         raise bad_value(f"{name}.shape", arr.shape, "H >= 1 and W >= 1")
     arr = np.ascontiguousarray(arr, dtype=np.float32)
-    finite = np.isfinite(arr)
-    if not finite.all():
-        bad = arr[~finite][0]
-        raise bad_value(name, f"contains {bad}", "finite radiance (no NaN or inf)")
-    low = float(arr.min())
-    if low < 0:
-        raise bad_value(name, f"minimum {low}", "non-negative linear radiance")
+    _check_values(arr, name)
     return arr
 
 
@@ -44,25 +68,46 @@ class Static(Scene):
     Parameters
     ----------
     image : (H, W) or (H, W, 3) array
-        Linear-light radiance, relative units (1.0 = full scale).
+        Linear-light radiance, relative units (1.0 = full scale).  A grey
+        (H, W) image is kept as one channel (:meth:`grey`); its three-channel
+        copy is made only if someone asks for :meth:`radiance`.
     """
 
     key_interval_s = None
 
     def __init__(self, image: np.ndarray):
-        self._image = validate_radiance(image, "image")
-        self._image.setflags(write=False)
-        self.height, self.width = self._image.shape[:2]
+        arr = np.asarray(image)
+        self._grey: np.ndarray | None = None
+        self._rgb: np.ndarray | None = None
+        if arr.ndim == 2:
+            # a private copy (the scene must not change with the caller's array)
+            grey = validate_grey(arr, "image")
+            self._grey = grey.copy() if grey is arr or grey.base is not None else grey
+            self._grey.setflags(write=False)
+        else:
+            self._rgb = validate_radiance(arr, "image")
+            self._rgb.setflags(write=False)
+        self.height, self.width = arr.shape[:2]
         self._mean: list[float] | None = None
 
     def radiance(self, t: float) -> np.ndarray:
-        return self._image
+        if self._rgb is None:
+            self._rgb = np.repeat(self._grey[..., None], 3, axis=2)
+            self._rgb.setflags(write=False)
+        return self._rgb
+
+    def grey(self, t: float) -> np.ndarray | None:
+        return self._grey
 
     def describe(self) -> dict:
         if self._mean is None:  # computed once: every simulation of the scene asks for it
-            # rows first: a contiguous reduction, ten times faster than over both axes
-            sums = self._image.sum(axis=0, dtype=np.float64).sum(axis=0)
-            self._mean = [float(v) / (self.height * self.width) for v in sums]
+            if self._grey is not None:
+                self._mean = [float(self._grey.sum(axis=0, dtype=np.float64).sum())
+                              / (self.height * self.width)] * 3
+            else:
+                # rows first: a contiguous reduction, ten times faster than over both axes
+                sums = self._rgb.sum(axis=0, dtype=np.float64).sum(axis=0)
+                self._mean = [float(v) / (self.height * self.width) for v in sums]
         return {
             "type": "static",
             "height": self.height,

@@ -227,9 +227,16 @@ def test_static_scene_costs_one_key_frame():
 
     class Counting(ss.scenes.Static):
         def radiance(self, t):
-            calls.append(t)
+            calls.append(("rgb", t))
             return super().radiance(t)
 
+        def grey(self, t):
+            calls.append(("grey", t))
+            return super().grey(t)
+
     sensor = ss.Sensor(height=4, width=4)
+    ss.simulate(Counting(np.ones((4, 4, 3))), sensor, 1000, chunk_readouts=100, gt_readouts=[])
+    assert calls == [("grey", 0.0), ("rgb", 0.0)]  # asked for a grey frame first, then RGB
+    calls.clear()
     ss.simulate(Counting(np.ones((4, 4))), sensor, 1000, chunk_readouts=100, gt_readouts=[])
-    assert calls == [0.0]
+    assert calls == [("grey", 0.0)]  # a grey image: its one channel only

@@ -6,27 +6,18 @@ import numpy as np
 from numba import njit
 
 from spikesim._simd import (
-    carry_add64,
-    carry_add64_zero,
+    carry_run64,
+    carry_run64_zero,
     high_bits_at_least64,
-    linear_carry_add64,
-    linear_carry_add64_zero,
+    linear_carry_run64,
+    linear_carry_run64_zero,
     lowest_bit_index,
     paper_carry_add64,
     paper_carry_add64_zero,
+    store_word,
 )
 
 TWO64 = 2.0**64
-
-
-@njit
-def _carry(acc, inc, start):
-    return carry_add64(acc, inc, start)
-
-
-@njit
-def _linear(acc, a, d, g, o, phi, start):
-    return linear_carry_add64(acc, a, d, g, o, phi, start)
 
 
 @njit
@@ -35,13 +26,24 @@ def _paper(acc, level, z, sd, g, o, start):
 
 
 @njit
-def _carry_zero(acc, inc, start):
-    return carry_add64_zero(acc, inc, start)
+def _runs(acc, inc, out, first, stride, nbytes, count, zero):
+    if zero:
+        carry_run64_zero(acc, inc, out, first, stride, nbytes, count)
+    else:
+        carry_run64(acc, inc, out, first, stride, nbytes, count)
 
 
 @njit
-def _linear_zero(acc, a, d, g, o, phi, start):
-    return linear_carry_add64_zero(acc, a, d, g, o, phi, start)
+def _linear_runs(acc, a, d, g, o, n0, t_a, inv, out, first, stride, nbytes, count, zero):
+    if zero:
+        linear_carry_run64_zero(acc, a, d, g, o, n0, t_a, inv, out, first, stride, nbytes, count)
+    else:
+        linear_carry_run64(acc, a, d, g, o, n0, t_a, inv, out, first, stride, nbytes, count)
+
+
+@njit
+def _store(out, index, word, nbytes):
+    store_word(out, index, word, nbytes)
 
 
 @njit
@@ -75,36 +77,67 @@ def _check_charge_step(step, acc, charge, start):
     assert int(m) == _mask(want < acc[sl])
 
 
-def test_carry_add64_wraps_and_orders_bits_like_the_packed_layout():
-    rng = np.random.default_rng(1)
-    acc = rng.integers(0, 2**64, 200, dtype=np.uint64)
-    inc = rng.integers(0, 2**64, 200, dtype=np.uint64)
-    acc[70], inc[70] = np.uint64(2**64 - 1), np.uint64(1)  # exact wrap to 0: a carry
-    acc[71], inc[71] = np.uint64(2**64 - 1), np.uint64(0)  # no carry
-    for start in (0, 64, 100):
-        a = acc.copy()
-        m = _carry(a, inc, start)
-        sl = slice(start, start + 64)
+def _reference_run(acc, charges, zero):
+    """NumPy: per readout ``acc += charge`` (wrapping), the carry mask, and for
+    zero reset the carrying lanes cleared; returns the masks and the final acc."""
+    acc = acc.copy()
+    masks = []
+    for inc in charges:
         with np.errstate(over="ignore"):
-            want = acc[sl] + inc[sl]
-        np.testing.assert_array_equal(a[sl], want)
-        assert int(m) == _mask(want < acc[sl])
-        np.testing.assert_array_equal(np.delete(a, np.arange(start, start + 64)),
-                                      np.delete(acc, np.arange(start, start + 64)))
+            new = acc + inc
+        carry = new < acc
+        masks.append(_mask(carry))
+        acc = np.where(carry, np.uint64(0), new) if zero else new
+    return masks, acc
 
 
-def test_linear_carry_add64_equals_the_scalar_formula():
+def _check_run(run, acc, charges, zero):
+    """``run(acc_copy, out, first, stride, nbytes, count)`` must equal
+    :func:`_reference_run`, writing readout ``k``'s mask as the low ``nbytes``
+    bytes (little-endian) at byte ``first + k·stride`` of ``out`` and nothing
+    else, for whole and partial words at unaligned places."""
+    count = len(charges)
+    masks, want = _reference_run(acc, charges, zero)
+    for first, stride, nbytes in ((3, 13, 8), (0, 8, 8), (5, 11, 5), (1, 9, 1)):
+        out = np.full(count * stride + first + 8, 7, np.uint8)
+        got = acc.copy()
+        run(got, out, first, stride, nbytes, count)
+        np.testing.assert_array_equal(got, want)
+        expect = np.full_like(out, 7)
+        for k, m in enumerate(masks):
+            at = first + k * stride
+            expect[at:at + nbytes] = np.frombuffer(m.to_bytes(8, "little")[:nbytes], np.uint8)
+        np.testing.assert_array_equal(out, expect)
+    assert not count or any(0 < m < 2**64 - 1 for m in masks)  # some carry, some not
+
+
+def test_carry_run64_wraps_and_orders_bits_like_the_packed_layout():
+    rng = np.random.default_rng(1)
+    acc = rng.integers(0, 2**64, 64, dtype=np.uint64)
+    inc = rng.integers(0, 2**63, 64, dtype=np.uint64)
+    acc[10], inc[10] = np.uint64(2**64 - 1), np.uint64(1)  # exact wrap to 0: a carry
+    acc[11], inc[11] = np.uint64(2**64 - 1), np.uint64(0)  # no carry, ever
+    for zero in (False, True):
+        for count in (0, 1, 37):
+            _check_run(lambda a, out, f, s, nb, c, zero=zero:
+                       _runs(a, inc, out, f, s, nb, c, zero), acc, [inc] * count, zero)
+
+
+def test_linear_carry_run64_equals_the_scalar_formula():
+    """Readout ``n0 + k`` gets ``(g·(a + d·phi) + o)·2⁶⁴`` truncated, with
+    ``phi = (n + ½ − t_a)·inv`` evaluated in this order (float64)."""
     rng = np.random.default_rng(2)
-    n = 128
-    a, d = rng.random(n) * 0.4 + 0.1, (rng.random(n) - 0.5) * 0.2  # charge stays in [0, 1)
-    g, o = rng.random(n) + 0.2, rng.random(n) * 0.01
-    acc = rng.integers(0, 2**64, n, dtype=np.uint64)
-    for phi in (0.0, 0.37, 1.0):
-        for start in (0, 64):
-            sl = slice(start, start + 64)
-            charge = g[sl] * (a[sl] + d[sl] * phi) + o[sl]
-            _check_charge_step(lambda acc_, phi=phi, start=start:
-                               _linear(acc_, a, d, g, o, phi, start), acc, charge, start)
+    a, d = rng.random(64) * 0.4 + 0.1, (rng.random(64) - 0.5) * 0.01  # charge stays in [0, 1)
+    g, o = rng.random(64) + 0.2, rng.random(64) * 0.01
+    acc = rng.integers(0, 2**64, 64, dtype=np.uint64)
+    n0, t_a, inv = 1000, 997.25, 1.0 / 48.0
+    for zero in (False, True):
+        for count in (1, 41):
+            phis = [(np.float64(n0 + k) + 0.5 - t_a) * inv for k in range(count)]
+            charges = [(g * (a + d * phi) + o) * TWO64 for phi in phis]
+            _check_run(lambda x, out, f, s, nb, c, zero=zero:
+                       _linear_runs(x, a, d, g, o, n0, t_a, inv, out, f, s, nb, c, zero),
+                       acc, [q.astype(np.uint64) for q in charges], zero)
 
 
 def test_paper_carry_add64_equals_the_scalar_formula_and_clips_negative_light():
@@ -130,28 +163,31 @@ def test_lane_masks_and_lowest_bit():
         assert int(_ctz(np.uint64(1 << bit) | np.uint64(1 << 63))) == bit
 
 
-def test_zero_reset_steps_clear_exactly_the_lanes_that_carried():
-    """The ``_zero`` twins: the same carry bits as the modulo step, and the
+def test_paper_zero_reset_step_clears_exactly_the_lanes_that_carried():
+    """The ``_zero`` twin: the same carry bits as the modulo step, and the
     lanes that carried hold 0 afterwards, the others the modulo sum."""
     rng = np.random.default_rng(4)
     n = 128
     acc = rng.integers(0, 2**64, n, dtype=np.uint64)
-    inc = rng.integers(0, 2**63, n, dtype=np.uint64)
-    a, d = rng.random(n) * 0.4 + 0.1, (rng.random(n) - 0.5) * 0.2
     g, o = rng.random(n) + 0.2, rng.random(n) * 0.01
     level, z, sd = rng.random(n) * 0.5, rng.standard_normal(n) * 3, rng.random(n) * 0.05
-    pairs = [(lambda x, s: _carry(x, inc, s), lambda x, s: _carry_zero(x, inc, s)),
-             (lambda x, s: _linear(x, a, d, g, o, 0.3, s),
-              lambda x, s: _linear_zero(x, a, d, g, o, 0.3, s)),
-             (lambda x, s: _paper(x, level, z, sd, g, o, s),
-              lambda x, s: _paper_zero(x, level, z, sd, g, o, s))]
-    for modulo, zero in pairs:
-        for start in (0, 64):
-            sl = slice(start, start + 64)
-            want, got = acc.copy(), acc.copy()
-            m = modulo(want, start)
-            assert 0 < int(m) < 2**64 - 1  # some lanes carry, some do not
-            assert int(zero(got, start)) == int(m)
-            fired = np.array([(int(m) >> k) & 1 for k in range(64)], bool)
-            np.testing.assert_array_equal(got[sl][fired], 0)
-            np.testing.assert_array_equal(got[sl][~fired], want[sl][~fired])
+    for start in (0, 64):
+        sl = slice(start, start + 64)
+        want, got = acc.copy(), acc.copy()
+        m = _paper(want, level, z, sd, g, o, start)
+        assert 0 < int(m) < 2**64 - 1  # some lanes carry, some do not
+        assert int(_paper_zero(got, level, z, sd, g, o, start)) == int(m)
+        fired = np.array([(int(m) >> k) & 1 for k in range(64)], bool)
+        np.testing.assert_array_equal(got[sl][fired], 0)
+        np.testing.assert_array_equal(got[sl][~fired], want[sl][~fired])
+
+
+def test_store_word_writes_the_low_bytes_little_endian_and_nothing_else():
+    word = 0x0807060504030201
+    for index in (0, 3, 8):
+        for nbytes in range(1, 9):
+            out = np.zeros(20, np.uint8)
+            _store(out, index, np.uint64(word), nbytes)
+            expect = np.zeros(20, np.uint8)
+            expect[index:index + nbytes] = np.arange(1, nbytes + 1)
+            np.testing.assert_array_equal(out, expect)

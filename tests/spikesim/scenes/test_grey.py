@@ -1,0 +1,66 @@
+"""A grey image is simulated from its one channel: the same bits as its
+three-channel copy, at a third of the memory traffic."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import spikesim as ss
+from spikesim.errors import SpikeSimValueError
+
+
+def _grey(h=40, w=70, seed=0):
+    rng = np.random.default_rng(seed)
+    return (rng.random((h, w)) * 1.4).astype(np.float32)  # some pixels above full scale
+
+
+@pytest.mark.parametrize("cfa", ["RGGB", None])
+@pytest.mark.parametrize("noise", [None, "paper", "physical"])
+def test_grey_static_equals_its_three_channel_copy(cfa, noise):
+    img = _grey()
+    noise_model = {None: None, "paper": ss.noise.PaperNoise(sigma_g=10),
+                   "physical": ss.noise.PhysicalNoise()}[noise]
+    sensor = ss.Sensor(height=40, width=70, cfa=cfa, noise=noise_model)
+    kw = dict(seed=5, clean_twin=True, gt_readouts=[0, 33, 90], chunk_readouts=29)
+    a = ss.simulate(ss.scenes.Static(img), sensor, 100, **kw)
+    b = ss.simulate(ss.scenes.Static(np.repeat(img[..., None], 3, axis=2)), sensor, 100, **kw)
+    np.testing.assert_array_equal(a.packed, b.packed)
+    np.testing.assert_array_equal(a.clean_packed, b.clean_packed)
+    np.testing.assert_array_equal(a.gt, b.gt)
+    assert a.unpack().any()
+    assert a.meta["scene"]["mean_radiance"] == pytest.approx(b.meta["scene"]["mean_radiance"],
+                                                             rel=1e-12)
+
+
+def test_grey_static_keeps_its_own_copy_and_leaves_the_callers_array_writable():
+    img = _grey()
+    scene = ss.scenes.Static(img)
+    assert img.flags.writeable
+    before = scene.radiance(0.0).copy()
+    img[:] = 0.0  # the caller's array changes; the scene does not
+    np.testing.assert_array_equal(scene.radiance(0.0), before)
+    assert scene.radiance(0.0).shape == (40, 70, 3)
+    np.testing.assert_array_equal(scene.grey(0.0), before[..., 1])
+    assert ss.scenes.Static(np.ones((4, 5, 3), np.float32)).grey(0.0) is None
+
+
+class _BadGrey(ss.scenes.Scene):
+    height, width = 8, 64
+
+    def radiance(self, t):
+        return np.ones((8, 64, 3), np.float32)
+
+    def grey(self, t):
+        g = np.ones((8, 64), np.float32)
+        g[3, 5] = np.nan
+        return g
+
+    def describe(self):
+        return {"type": "bad-grey"}
+
+
+def test_a_grey_frame_with_nan_is_a_one_line_error_naming_grey():
+    sensor = ss.Sensor(height=8, width=64, cfa="RGGB")
+    with pytest.raises(SpikeSimValueError, match=r"scene\.grey\(t=0\).*finite"):
+        ss.simulate(_BadGrey(), sensor, 10)
