@@ -391,17 +391,24 @@ def _general_step(n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x
 
 
 @njit(inline="always", **_opts)
-def _pixel_rows(model, y, x0, gain, offset, electrons, charge_sd):
-    """Copy the block's per-pixel constants (row ``y``, lanes from ``x0``) into
-    contiguous rows.  Loops, not slices: a view of an array the threads share
-    costs an atomic reference count per block."""
+def _charge_rows(model, y, x0, gain, offset):
+    """Copy the block's charge constants (row ``y``, lanes from ``x0``) into
+    the contiguous rows ``gain``, ``offset``."""
     gy = y if model.gain.shape[0] > 1 else 0
     oy = y if model.offset.shape[0] > 1 else 0
-    ey = y * np.int64(model.electrons.shape[0] > 1)
-    sy = y if model.charge_sd.shape[0] > 1 else 0
     for lane in range(BLOCK):
         gain[lane] = model.gain[gy, x0 + lane]
         offset[lane] = model.offset[oy, x0 + lane]
+
+
+@njit(inline="always", **_opts)
+def _noise_rows(model, y, x0, electrons, charge_sd):
+    """The same for the noise constants, which only the event and general
+    steps read (the fast paths never: a block copies them when it first needs
+    them)."""
+    ey = y * np.int64(model.electrons.shape[0] > 1)
+    sy = y if model.charge_sd.shape[0] > 1 else 0
+    for lane in range(BLOCK):
         electrons[lane] = model.electrons[ey, x0 + lane]
         charge_sd[lane] = model.charge_sd[sy, x0 + lane]
 
@@ -436,12 +443,15 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     qbuf = scratch_u[0]
     bbuf = scratch_u[1]
     pkeys = scratch_u[2]
-    _pixel_rows(model, y, x0, gain, offset, electrons, charge_sd)
+    _charge_rows(model, y, x0, gain, offset)
+    noise_rows = model.event  # electrons and charge_sd copied (the event path reads them)
+    if noise_rows:
+        _noise_rows(model, y, x0, electrons, charge_sd)
     blk = x0 // BLOCK
     reset = model.reset
     zero = reset == RESET_ZERO
     if (model.paper_sg2 > 0.0 or model.paper_sp2 > 0.0 or model.jitter > 0.0
-            or charge_sd[0] >= 0.0):
+            or model.charge_sd[0, 0] >= 0.0):  # (−1 everywhere when off)
         pixel_keys_into(np.uint64(y * width + x0), pkeys)
     after = ev[AFTER_RESET]
     if model.event:
@@ -475,6 +485,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
         if runs.kind[r] == RUN_PIECES:
             _pieces_radiance(frames, runs.p0[r], runs.p1[r], runs.piece_a, runs.piece_b,
                              runs.piece_len, runs.piece_phi, y, x0, ibuf)
+            if not noise_rows:
+                _noise_rows(model, y, x0, electrons, charge_sd)
+                noise_rows = True
             _put(out, n0 - t_off, y, blk, _general_step(
                 n0, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width, model,
                 zbuf, bbuf, pkeys, shot_work, after))
@@ -516,6 +529,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
             _fast_paper(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
                         model, pkeys, ibuf, zbuf, sdbuf, bbuf, zero)
         else:
+            if not noise_rows:
+                _noise_rows(model, y, x0, electrons, charge_sd)
+                noise_rows = True
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
                 for lane in range(BLOCK):
