@@ -125,15 +125,16 @@ class SimulationRun:
         float32) when it offers one (the optional ``grey`` of the scene
         protocol), else None."""
         grey = getattr(self.scene, "grey", None)
-        g = grey(t) if grey is not None else None
+        g = grey(t) if callable(grey) else None
         if g is None:
             return None
         g = np.asarray(g)
-        if g.shape != self.sensor.shape or g.dtype != np.float32 or not g.flags.c_contiguous:
-            g = validate_grey(g, f"scene.grey(t={t:.6g})")
-            if g.shape != self.sensor.shape:
-                raise bad_value(f"scene.grey(t={t:.6g}).shape", g.shape,
-                                f"({self.sensor.height}, {self.sensor.width})")
+        name = f"scene.grey(t={t:.6g})"
+        if g.shape != self.sensor.shape:
+            raise bad_value(f"{name}.shape", g.shape,
+                            f"({self.sensor.height}, {self.sensor.width}), the sensor size")
+        if g.dtype != np.float32 or not g.flags.c_contiguous:
+            g = validate_grey(g, name)
         return g
 
     def _remember_if_frozen(self, rad: np.ndarray) -> None:

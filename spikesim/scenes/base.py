@@ -43,7 +43,9 @@ def uniform_key_times(start_s: float, stop_s: float, interval_s: float) -> np.nd
 
 
 class Scene(ABC):
-    """Base class of scenes; subclasses implement ``radiance`` and ``describe``."""
+    """Base class of scenes; subclasses set ``height``, ``width`` and
+    ``key_interval_s`` and implement ``radiance`` and ``describe``, and may
+    offer ``grey`` (the protocol: this module's docstring)."""
 
     height: int
     width: int

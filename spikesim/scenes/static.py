@@ -62,15 +62,23 @@ def validate_radiance(image: np.ndarray, name: str = "image") -> np.ndarray:
     return arr
 
 
+def _own(checked: np.ndarray, given: np.ndarray) -> np.ndarray:
+    """``checked`` (the validated ``given``) as an array nobody else holds."""
+    return checked.copy() if np.may_share_memory(checked, given) else checked
+
+
 class Static(Scene):
     """A still image as a scene.
 
     Parameters
     ----------
     image : (H, W) or (H, W, 3) array
-        Linear-light radiance, relative units (1.0 = full scale).  A grey
-        (H, W) image is kept as one channel (:meth:`grey`); its three-channel
-        copy is made only if someone asks for :meth:`radiance`.
+        Linear-light radiance, relative units (1.0 = full scale), any real
+        dtype, taken as given: an 8-bit picture must be divided by 255 and
+        linearised first (``spikesim.srgb``), else 255 means 255 × full scale.
+        The scene keeps its own copy.  A grey (H, W) image is kept as one
+        channel (:meth:`grey`); its three-channel copy is made only if someone
+        asks for :meth:`radiance`.
     """
 
     key_interval_s = None
@@ -79,13 +87,12 @@ class Static(Scene):
         arr = np.asarray(image)
         self._grey: np.ndarray | None = None
         self._rgb: np.ndarray | None = None
+        # private copies: the scene must not change with the caller's array
         if arr.ndim == 2:
-            # a private copy (the scene must not change with the caller's array)
-            grey = validate_grey(arr, "image")
-            self._grey = grey.copy() if grey is arr or grey.base is not None else grey
+            self._grey = _own(validate_grey(arr, "image"), arr)
             self._grey.setflags(write=False)
         else:
-            self._rgb = validate_radiance(arr, "image")
+            self._rgb = _own(validate_radiance(arr, "image"), arr)
             self._rgb.setflags(write=False)
         self.height, self.width = arr.shape[:2]
         self._mean: list[float] | None = None

@@ -33,16 +33,20 @@ def test_grey_static_equals_its_three_channel_copy(cfa, noise):
                                                              rel=1e-12)
 
 
-def test_grey_static_keeps_its_own_copy_and_leaves_the_callers_array_writable():
-    img = _grey()
+@pytest.mark.parametrize("make", [lambda: _grey(), lambda: np.repeat(_grey()[..., None], 3, 2),
+                                  lambda: np.repeat(_grey()[..., None], 3, 2)[:, :50]])
+def test_static_keeps_its_own_copy_and_leaves_the_callers_array_writable(make):
+    img = make()
     scene = ss.scenes.Static(img)
     assert img.flags.writeable
     before = scene.radiance(0.0).copy()
     img[:] = 0.0  # the caller's array changes; the scene does not
     np.testing.assert_array_equal(scene.radiance(0.0), before)
-    assert scene.radiance(0.0).shape == (40, 70, 3)
-    np.testing.assert_array_equal(scene.grey(0.0), before[..., 1])
-    assert ss.scenes.Static(np.ones((4, 5, 3), np.float32)).grey(0.0) is None
+    assert scene.radiance(0.0).shape == (40, img.shape[1], 3)
+    if img.ndim == 2:
+        np.testing.assert_array_equal(scene.grey(0.0), before[..., 1])
+    else:
+        assert scene.grey(0.0) is None
 
 
 class _BadGrey(ss.scenes.Scene):
@@ -64,3 +68,20 @@ def test_a_grey_frame_with_nan_is_a_one_line_error_naming_grey():
     sensor = ss.Sensor(height=8, width=64, cfa="RGGB")
     with pytest.raises(SpikeSimValueError, match=r"scene\.grey\(t=0\).*finite"):
         ss.simulate(_BadGrey(), sensor, 10)
+
+
+def test_a_grey_frame_of_the_wrong_size_names_the_sensor_size():
+    class Small(_BadGrey):
+        def grey(self, t):
+            return np.ones((8, 60, 1), np.float32)
+
+    with pytest.raises(SpikeSimValueError, match=r"grey\(t=0\)\.shape.*\(8, 64\)"):
+        ss.simulate(Small(), ss.Sensor(height=8, width=64), 10)
+
+
+def test_a_grey_attribute_that_is_not_a_method_is_ignored():
+    class Flagged(_BadGrey):
+        grey = True  # a scene's own attribute, not the protocol's method
+
+    stream = ss.simulate(Flagged(), ss.Sensor(height=8, width=64), 10)
+    assert stream.gt.shape == (1, 8, 64, 3)
