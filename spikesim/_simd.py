@@ -92,19 +92,27 @@ def _store_word(builder, data, index, word, nbytes):
 def _run_loop(context, builder, acc_ptr, count, out, charge_at, zero_reset):
     """``count`` readouts of a 64-lane block with the accumulator held in
     registers: readout ``k`` adds ``charge_at(k)`` (a <64 x i64> increment),
-    and its carry bits go to the word at byte ``first + k·stride`` of ``out``."""
+    and its carry bits go to the word at byte ``first + k·stride`` of ``out``.
+
+    Zero reset works from the lanes that *keep* their sum (``new ≥ old``):
+    the clearing is then a zero-masked move under that mask and the output
+    word its complement, instead of a mask inversion per 8 lanes (which also
+    ran out of mask registers: 1.2–1.35× slower than modulo, measured)."""
     data, first, stride, nbytes = out
     slot = cgutils.alloca_once(builder, acc_ptr.type.pointee)
     builder.store(builder.load(acc_ptr, align=8), slot)
     with cgutils.for_range(builder, count) as loop:
         old = builder.load(slot)
         new = builder.add(old, charge_at(loop.index))
-        carry = builder.icmp_unsigned("<", new, old)
         if zero_reset:
-            new = builder.select(carry, ir.Constant(new.type, None), new)
+            keep = builder.icmp_unsigned(">=", new, old)
+            new = builder.select(keep, new, ir.Constant(new.type, None))
+            word = builder.not_(builder.bitcast(keep, ir.IntType(LANES)))
+        else:
+            word = builder.bitcast(builder.icmp_unsigned("<", new, old), ir.IntType(LANES))
         builder.store(new, slot)
-        _store_word(builder, data, builder.add(first, builder.mul(loop.index, stride)),
-                    builder.bitcast(carry, ir.IntType(LANES)), nbytes)
+        _store_word(builder, data, builder.add(first, builder.mul(loop.index, stride)), word,
+                    nbytes)
     builder.store(builder.load(slot), acc_ptr, align=8)
 
 
