@@ -3,6 +3,8 @@ three-channel copy, at a third of the memory traffic."""
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -85,3 +87,26 @@ def test_a_grey_attribute_that_is_not_a_method_is_ignored():
 
     stream = ss.simulate(Flagged(), ss.Sensor(height=8, width=64), 10)
     assert stream.gt.shape == (1, 8, 64, 3)
+
+
+def test_a_static_frame_sampled_once_is_reused_only_for_the_same_image_and_cfa():
+    """Later runs copy a frozen image's sampled key frame instead of sampling it
+    again: the same bits as a cold run, for each CFA, and never for another
+    image (even one that reuses a dead image's address)."""
+    sim = sys.modules["spikesim.simulate"]
+    rng = np.random.default_rng(7)
+    sensors = [ss.Sensor(height=20, width=70, cfa=c) for c in ("RGGB", None, "GBRG")]
+
+    def cold(img, sensor):
+        sim._FROZEN_FRAMES.clear()
+        return ss.simulate(ss.scenes.Static(img), sensor, 50, seed=3).packed
+
+    for _ in range(3):  # new images, likely at recycled addresses
+        img = rng.random((20, 70, 3)).astype(np.float32)
+        scene = ss.scenes.Static(img)
+        want = [cold(img, s) for s in sensors]
+        for _ in range(2):
+            for sensor, w in zip(sensors, want, strict=True):
+                np.testing.assert_array_equal(ss.simulate(scene, sensor, 50, seed=3).packed, w)
+        assert len(sim._FROZEN_FRAMES) > 0  # the warm runs had frames to reuse
+        del scene
