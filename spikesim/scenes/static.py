@@ -21,6 +21,16 @@ def _check_values(arr: np.ndarray, name: str) -> None:
         raise bad_value(name, f"minimum {low}", "non-negative linear radiance")
 
 
+def _checked_float32(arr: np.ndarray, name: str) -> np.ndarray:
+    """``arr`` (of a valid rank) as C-contiguous float32 once its size and values
+    are checked."""
+    if arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise bad_value(f"{name}.shape", arr.shape, "H >= 1 and W >= 1")
+    arr = np.ascontiguousarray(arr, dtype=np.float32)
+    _check_values(arr, name)
+    return arr
+
+
 def _check_dtype(arr: np.ndarray, name: str) -> None:
     if arr.dtype.kind not in "fiu" or arr.dtype == np.bool_:
         raise SpikeSimTypeError(f"{name} must have a real numeric dtype, got {arr.dtype}")
@@ -34,11 +44,7 @@ def validate_grey(image: np.ndarray, name: str = "image") -> np.ndarray:
     _check_dtype(arr, name)
     if arr.ndim != 2:
         raise bad_value(f"{name}.shape", np.shape(image), "(H, W)")
-    if arr.shape[0] < 1 or arr.shape[1] < 1:
-        raise bad_value(f"{name}.shape", arr.shape, "H >= 1 and W >= 1")
-    arr = np.ascontiguousarray(arr, dtype=np.float32)
-    _check_values(arr, name)
-    return arr
+    return _checked_float32(arr, name)
 
 
 def validate_radiance(image: np.ndarray, name: str = "image") -> np.ndarray:
@@ -55,11 +61,7 @@ def validate_radiance(image: np.ndarray, name: str = "image") -> np.ndarray:
         return np.repeat(validate_grey(arr, name)[..., None], 3, axis=2)
     if arr.ndim != 3 or arr.shape[2] != 3:
         raise bad_value(f"{name}.shape", np.shape(image), "(H, W) or (H, W, 3)")
-    if arr.shape[0] < 1 or arr.shape[1] < 1:
-        raise bad_value(f"{name}.shape", arr.shape, "H >= 1 and W >= 1")
-    arr = np.ascontiguousarray(arr, dtype=np.float32)
-    _check_values(arr, name)
-    return arr
+    return _checked_float32(arr, name)
 
 
 def _own(checked: np.ndarray, given: np.ndarray) -> np.ndarray:
