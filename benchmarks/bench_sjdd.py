@@ -101,15 +101,38 @@ def bench_deform(threads: int) -> dict:
 
 
 def _sjdd_name(weights: str) -> str:
-    """The registered method name of ``weights`` ("sjdd" for the shipped default)."""
+    """The registered method name of ``weights`` ("sjdd" for the shipped default,
+    with the method's default self-ensemble)."""
     from spikejdd.models import sjdd_method
     from spikejdd.registry import register_method
 
     if weights == "sjdd-lite":
         return "sjdd"
     name = f"sjdd-{Path(weights).stem}"
-    register_method(name, lambda s, c, k, rate=0.6: sjdd_method(s, c, k, rate, weights=weights),
-                    overwrite=True)
+    register_method(name, _with_window(
+        lambda s, c, k, rate=0.6: sjdd_method(s, c, k, rate, weights=weights), weights),
+        overwrite=True)
+    return name
+
+
+def _with_window(fn, weights: str):
+    """``fn`` with the ``window_for`` of ``weights``' model (reported as readouts used)."""
+    from spikejdd.models import sjdd_method
+
+    fn.window_for = lambda n_readouts, **_: sjdd_method.window_for(n_readouts, weights=weights)
+    return fn
+
+
+def _one_view_name(weights: str) -> str:
+    """A method for ``weights`` without the self-ensemble (``ensemble=1``): one
+    forward pass, the speed end of the trade-off."""
+    from spikejdd.models import sjdd_method
+    from spikejdd.registry import register_method
+
+    name = f"{_sjdd_name(weights)}-1view"
+    register_method(name, _with_window(
+        lambda s, c, k, rate=0.6: sjdd_method(s, c, k, rate, weights=weights, ensemble=1),
+        weights), overwrite=True)
     return name
 
 
@@ -125,7 +148,8 @@ def bench_table(weights: str, threads: int, size=(64, 96), frames: int = 2) -> d
 
     torch.set_num_threads(threads)
     name = _sjdd_name(weights)
-    methods = CLASSICAL + [name]
+    one = _one_view_name(weights)
+    methods = CLASSICAL + [name, one]
     sensor = ss.Sensor(height=size[0], width=size[1], cfa="RGGB", clock_hz=20_000.0,
                        full_scale_rate=0.6, noise=ss.noise.PaperNoise(sigma_g=10.0, sigma_p=0.0))
     context = 41
@@ -155,7 +179,7 @@ def bench_table(weights: str, threads: int, size=(64, 96), frames: int = 2) -> d
         best = max(CLASSICAL, key=lambda m: means[m])
         table.setdefault(scene, {})[str(speed)] = {
             "sjdd": means[name], "best_classical": best, "classical": means[best],
-            "delta_db": means[name] - means[best]}
+            "delta_db": means[name] - means[best], "delta_db_one_view": means[one] - means[best]}
     res = {"weights": weights, "method": name, "size": list(size), "frames_per_cell": frames,
            "noise": "GN sigma_g=10", "speeds_px_s": list(TABLE_SPEEDS), "table": table,
            "command": f"python benchmarks/bench_sjdd.py --weights {weights} --threads {threads} "
@@ -183,6 +207,11 @@ def speed_table_md(res: dict) -> str:
                      + " |")
     means = [np.mean([row[s]["delta_db"] for row in res["table"].values()]) for s in speeds]
     lines.append("| **mean** | " + " | ".join(f"**{m:+.2f}**" for m in means) + " |")
+    if all("delta_db_one_view" in row[s] for row in res["table"].values() for s in speeds):
+        one = [np.mean([row[s]["delta_db_one_view"] for row in res["table"].values()])
+               for s in speeds]
+        lines.append("| mean, one view (`ensemble=1`) | " + " | ".join(f"{m:+.2f}" for m in one)
+                     + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -193,7 +222,8 @@ def bench_sweep(weights: str, threads: int) -> dict:
 
     torch.set_num_threads(threads)
     name = _sjdd_name(weights)
-    methods = CLASSICAL + [name]
+    one = _one_view_name(weights)
+    methods = CLASSICAL + [name, one]
     result = evaluate.sweep(methods, size=(64, 96), context=41, frames_per_scene=2, repeats=3,
                             seed=0, progress=True)
     cmd = f"python benchmarks/bench_sjdd.py --weights {weights} --threads {threads}"
@@ -201,13 +231,13 @@ def bench_sweep(weights: str, threads: int) -> dict:
     result["sjdd"] = {"weights": weights, "threads": threads, "train": {
         k: blob["train"].get(k) for k in ("step",)}, "eval_during_training": blob["eval"]}
     evaluate.write_report(result, methods, RESULTS / "sjdd_sweep", command=cmd)
-    summary = summarize(result, methods, name)
+    summary = summarize(result, methods, name, one)
     (RESULTS / "sjdd_summary.md").write_text(summary)
     print(summary)
     return result
 
 
-def summarize(result: dict, methods: list[str], name: str) -> str:
+def summarize(result: dict, methods: list[str], name: str, one_view: str | None = None) -> str:
     from spikejdd.evaluate import SWEEP_LEVELS
 
     lines = ["# SJDD-Net against the best classical pipeline", "",
@@ -221,7 +251,7 @@ def summarize(result: dict, methods: list[str], name: str) -> str:
         def mean(m, key="PSNR[linear]", label=label):
             vals = [result["table"][m][f"{s}/{label}"][key] for s in ("object", "camera")]
             return float(np.mean(vals))
-        classical = [m for m in methods if m != name]
+        classical = [m for m in methods if m in CLASSICAL]
         best = max(classical, key=mean)
         d = mean(name) - mean(best)
         target = label in ("GN10", "GN15", "GPN-rand")
@@ -234,7 +264,17 @@ def summarize(result: dict, methods: list[str], name: str) -> str:
     e = result["summary"]
     lines += ["", "Time per frame (CPU, median of 3): SJDD-Net "
               f"{e[name]['all']['ms_per_frame']:.0f} ms; tfp+menon2007+nlm "
-              f"{e['tfp+menon2007+nlm']['all']['ms_per_frame']:.0f} ms.",
+              f"{e['tfp+menon2007+nlm']['all']['ms_per_frame']:.0f} ms."]
+    if one_view is not None:
+        def overall(m):
+            return float(np.mean([result["table"][m][f"{s}/{lb}"]["PSNR[linear]"]
+                                  for lb, *_ in SWEEP_LEVELS for s in ("object", "camera")]))
+        lines += ["", f"Sweep mean PSNR: SJDD-Net {overall(name):.2f} dB "
+                  f"({e[name]['all']['ms_per_frame']:.0f} ms per frame); one view "
+                  f"(`ensemble=1`) {overall(one_view):.2f} dB "
+                  f"({e[one_view]['all']['ms_per_frame']:.0f} ms); tfp+menon2007+nlm "
+                  f"{overall('tfp+menon2007+nlm'):.2f} dB."]
+    lines += [
               "", "Acceptance (≥ 2 dB at GN10, GN15, GPN): "
               + ("MET" if all(verdict) else "NOT MET by this model") + "."]
     return "\n".join(lines) + "\n"

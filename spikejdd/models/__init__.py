@@ -7,6 +7,7 @@ Public names::
     rgb, noise_map = model(spikes, mask)          # (N, 39, H, W), (N, 4, H, W)
     model = load_pretrained("sjdd-lite")          # a shipped checkpoint (spikejdd/weights)
     TorchMethod(module, window=39)                # any nn.Module as a reconstruction method
+    run_ensemble(module, x, "RGGB", 2)            # mean over geometric views (``ensemble``)
     sj.reconstruct(spikes, cfa="RGGB", method="sjdd", center=19)
 
 Modules: :mod:`~spikejdd.models.sjdd` (architecture), :mod:`~.deform`
@@ -19,7 +20,7 @@ does not import it.
 
 from __future__ import annotations
 
-from spikejdd.models.adapter import TorchMethod, model_inputs, sjdd_method
+from spikejdd.models.adapter import ENSEMBLES, TorchMethod, model_inputs, run_ensemble, sjdd_method
 from spikejdd.models.checkpoints import (
     CheckpointError,
     check_state_dict,
@@ -54,7 +55,7 @@ from spikejdd.models.sjdd import (
 
 __all__ = ["SJDDNet", "SJDDConfig", "DEFAULT", "LITE", "PUBLISHED", "PUBLISHED_PARAMETERS",
            "load_pretrained", "list_pretrained", "pretrained_path", "resolve_weights",
-           "cached_model", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "sjdd_method", "TorchMethod",
+           "cached_model", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "sjdd_method", "TorchMethod", "run_ensemble", "ENSEMBLES",
            "model_inputs", "save_checkpoint", "load_checkpoint", "load_model",
            "convert_published_state_dict", "to_published_state_dict", "check_state_dict",
            "CheckpointError", "DeformConv2d", "deform_conv2d", "torchvision_available",

@@ -1,0 +1,124 @@
+"""Geometric self-ensemble of torch methods: every view keeps the Bayer pattern
+and maps back to the right pixels; one view is the plain model, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import spikejdd as sj
+import spikesim as ss
+from spikejdd.models import TorchMethod, run_ensemble, sjdd_method
+from spikejdd.models.adapter import model_inputs
+from spikejdd.models.pretrained import cached_model
+from spikesim.cfa import channel_index, mask_planes
+from spikesim.errors import SpikeSimValueError
+
+PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
+
+
+class Probe(torch.nn.Module):
+    """Channel 0: each pixel's spike count (differs from pixel to pixel, so a
+    view mapped back to the wrong pixels shows); channels 1, 2: the red and
+    blue mask planes it was given (a view that changed the pattern shows)."""
+
+    def forward(self, spikes, mask):
+        return torch.cat([spikes.sum(1, keepdim=True), mask[:, :1], mask[:, 3:]], 1)
+
+
+def _spikes(h, w, t=5, seed=0):
+    return np.random.default_rng(seed).integers(0, 2, (t, h, w), dtype=np.uint8)
+
+
+@pytest.mark.parametrize("cfa", PATTERNS)
+@pytest.mark.parametrize("shape", [(6, 8), (7, 9), (5, 4), (2, 3)])
+@pytest.mark.parametrize("ensemble", [2, 4])
+def test_views_keep_pattern_and_pixels(cfa, shape, ensemble):
+    spikes = _spikes(*shape)
+    x = torch.from_numpy(spikes.astype(np.float32))[None]
+    out = run_ensemble(Probe(), x, cfa, ensemble).numpy()
+    np.testing.assert_array_equal(out[0], spikes.sum(0))
+    colours = channel_index(cfa, *shape)
+    np.testing.assert_array_equal(out[1], colours == 0)
+    np.testing.assert_array_equal(out[2], colours == 2)
+
+
+class Rows(torch.nn.Module):
+    """Outputs each pixel's row index in the view it is given."""
+
+    def forward(self, spikes, mask):
+        h, w = spikes.shape[-2:]
+        r = torch.arange(h, dtype=torch.float32)[:, None].expand(h, w)
+        return torch.stack([r, r, r])[None]
+
+
+def test_views_are_averaged():
+    """The mean over views of where each pixel sat in them, which only a
+    correct mapping and count give."""
+    x = torch.zeros(1, 3, 6, 8)
+    rows = np.arange(6.0)[:, None] * np.ones((1, 8))
+    cols = np.ones((6, 1)) * np.arange(8.0)[None]
+    inner = (slice(1, -1), slice(1, -1))
+    border = np.ones((6, 8), bool)
+    border[inner] = False
+    # RGGB: the transposed view needs no crop (its row is the input's column);
+    # the 180° rotations are BGGR, so they drop the border: rows 4 − row and
+    # 6 − column of the interior
+    np.testing.assert_allclose(run_ensemble(Rows(), x, "RGGB", 2).numpy()[0], (rows + cols) / 2)
+    four = run_ensemble(Rows(), x, "RGGB", 4).numpy()[0]
+    np.testing.assert_allclose(four[inner], 2.5)  # (r + c + (4 − r) + (6 − c)) / 4
+    np.testing.assert_allclose(four[border], (rows + cols)[border] / 2)
+    # GRBG: the transposed view drops its first and last row and column (the
+    # input's border), so its row is the input's column − 1 and the border has
+    # the identity view alone
+    out = run_ensemble(Rows(), x, "GRBG", 2).numpy()[0]
+    inner = (slice(1, -1), slice(1, -1))
+    np.testing.assert_allclose(out[inner], (rows[inner] + cols[inner] - 1) / 2)
+    border = np.ones((6, 8), bool)
+    border[inner] = False
+    np.testing.assert_allclose(out[border], rows[border])
+
+
+def test_one_view_is_the_model_bit_for_bit():
+    sensor = ss.Sensor(height=18, width=22, cfa="GRBG",
+                       noise=ss.noise.PaperNoise(sigma_g=5.0, sigma_p=0.0))
+    stream = ss.simulate(ss.scenes.procedural("fan", size=(18, 22), speed=300.0), sensor, 41,
+                         seed=2, gt_readouts=[])
+    spikes = stream.unpack()
+    model = cached_model("sjdd-lite", "cpu")
+    x, m = model_inputs(spikes, "GRBG", 20, model.config.n_readouts)
+    with torch.inference_mode():
+        plain = model(x, m)[0][0].clamp(0, 1).permute(1, 2, 0).numpy()
+    np.testing.assert_array_equal(sjdd_method(spikes, "GRBG", 20, ensemble=1), plain)
+    two = sj.reconstruct(spikes, "GRBG", method="sjdd", center=20)  # the default
+    np.testing.assert_array_equal(two, sjdd_method(spikes, "GRBG", 20, ensemble=2))
+    assert not np.array_equal(two, plain)
+
+
+def test_torch_method_option_and_default():
+    spikes = _spikes(6, 8, t=3)
+    probe = TorchMethod(Probe(), window=3, ensemble=4)
+    np.testing.assert_array_equal(probe(spikes, "BGGR", 1)[..., 0], spikes.sum(0).clip(0, 1))
+    rows = TorchMethod(Rows(), window=3)  # default: one view
+    np.testing.assert_array_equal(rows(spikes, "RGGB", 1)[..., 0],
+                                  (np.arange(6.0)[:, None] * np.ones((1, 8))).clip(0, 1))
+    two = rows(spikes, "RGGB", 1, ensemble=2)[..., 0]
+    np.testing.assert_allclose(two, ((np.arange(6.0)[:, None] + np.arange(8.0)) / 2).clip(0, 1))
+
+
+@pytest.mark.parametrize("bad", [0, 3, 8, True, "2", 2.0])
+def test_bad_ensemble(bad):
+    with pytest.raises(SpikeSimValueError, match="ensemble"):
+        sjdd_method(_spikes(8, 8, t=39), "RGGB", 19, ensemble=bad)
+    with pytest.raises(SpikeSimValueError, match="ensemble"):
+        TorchMethod(Probe(), window=3, ensemble=bad)
+
+
+def test_mask_planes_of_a_view_match_its_crop():
+    """The premise of the crops: a transposed GRBG mosaic is GBRG, and dropping
+    its first row and column gives GRBG again."""
+    c = channel_index("GRBG", 6, 8)
+    np.testing.assert_array_equal(c.T, channel_index("GBRG", 8, 6))
+    np.testing.assert_array_equal(c.T[1:-1, 1:-1], channel_index("GRBG", 6, 4))
+    assert mask_planes("GRBG", 6, 4).shape == (4, 6, 4)
