@@ -58,6 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", default="evaluation", help="output path stem (.json/.md/.png)")
     ev.add_argument("--quiet", action="store_true", help="no progress bars")
     _runtime_options(ev)
+    _ensemble_option(ev)
     ev.add_argument("--panels", type=int, default=6,
                     help="image panels (GT and every method, same crop) in the report")
     sub.add_parser("methods", help="list reconstruction methods")
@@ -80,6 +81,12 @@ def _runtime_options(p) -> None:
     p.add_argument("--threads", type=int, default=None,
                    help="torch threads per process (default 1 on the CPU: measured faster, "
                         "benchmarks/results/threads.md)")
+
+
+def _ensemble_option(p) -> None:
+    p.add_argument("--ensemble", type=int, choices=(1, 2, 4), default=None,
+                   help="forward passes of learned methods averaged over geometric views "
+                        "(default: the method's own, 2 for sjdd; 1 is twice as fast)")
 
 
 def _methods(text: str | None) -> list[str]:
@@ -147,6 +154,7 @@ def _reconstruct_parser(sub) -> None:
                     help=".dat stored top-down (default: upside down, PKU convention)")
     rc.add_argument("--rate", type=float, help="full_scale_rate (default: file's, or 0.6)")
     _runtime_options(rc)
+    _ensemble_option(rc)
     rc.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -169,14 +177,14 @@ def _evaluate(args) -> int:
         result = evaluate.sweep(methods, size=args.size, context=args.context or 41,
                                 frames_per_scene=args.frames_per_scene, repeats=args.repeats,
                                 seed=args.seed, progress=not args.quiet, outputs=outputs,
-                                device=device, frames_out=frames)
+                                device=device, frames_out=frames, ensemble=args.ensemble)
     else:
         from spikesim.io import resolve_dataset
 
         data = resolve_dataset(args.data, args.split)
         frames = evaluate.frames_from_dataset(data, args.context, args.per_sequence)
         result = evaluate.run(frames, methods, repeats=args.repeats, progress=not args.quiet,
-                              outputs=outputs, device=device)
+                              outputs=outputs, device=device, ensemble=args.ensemble)
     command = "spikejdd " + " ".join(shlex.quote(a) for a in args.argv)
     paths = evaluate.write_report(result, methods, args.out, command=command, frames=frames,
                                   outputs=outputs, panels=args.panels)
@@ -311,6 +319,8 @@ def _reconstruct(args) -> int:
     methods = [get_method(m) for m in names]
     device = _configure(args)
     options = {"device": device}
+    if args.ensemble is not None:
+        options["ensemble"] = args.ensemble
     if src.suffix.lower() == ".dat":
         from spikejdd.capture import centred_window
         from spikesim.io import open_dat

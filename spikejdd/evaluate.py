@@ -165,12 +165,15 @@ def _time_call(fn, repeats: int):
 
 
 def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: bool = True,
-        outputs: dict | None = None, device: str | None = None) -> dict:
+        outputs: dict | None = None, device: str | None = None,
+        ensemble: int | None = None) -> dict:
     """Score and time every method on every frame; see the module doc for the timing rule.
 
     When ``outputs`` is a dict it receives each reconstruction under
     ``(method, frame index)`` (for image panels, without reconstructing again).
-    ``device`` reaches methods that take one (torch methods); torch threads
+    ``device`` and ``ensemble`` (the views of
+    :func:`spikejdd.models.run_ensemble`; None: each method's default) reach
+    methods that take them (torch methods); torch threads
     are a per-process setting (:func:`spikejdd.runtime.set_threads`).  Each
     row records the readouts the method used (``window``) when it says.
     """
@@ -180,6 +183,11 @@ def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: boo
         raise bad_value("frames", frames, "at least one frame")
     fns = {m: get_method(m) for m in methods}  # validates every name up front
     opts = {} if device is None else {"device": device}
+    if ensemble is not None:
+        if isinstance(ensemble, bool) or ensemble not in (1, 2, 4):
+            raise bad_value("ensemble", ensemble, "1, 2 or 4 views (or None: each method's "
+                                                  "default)")
+        opts["ensemble"] = int(ensemble)
     rows = []
     bar = tqdm(total=len(frames) * len(methods), desc="evaluate", disable=not progress)
     for m, fn in fns.items():
@@ -242,7 +250,8 @@ GPN_RANGE = {"sigma_g": (0.0, 15.0), "sigma_p": (0.0, 1.0)}
 
 def sweep(methods: list[str], size=(64, 96), context: int = 41, frames_per_scene: int = 2,
           repeats: int = 3, seed: int = 0, progress: bool = True, outputs: dict | None = None,
-          device: str | None = None, frames_out: list | None = None) -> dict:
+          device: str | None = None, frames_out: list | None = None,
+          ensemble: int | None = None) -> dict:
     """Table-1-shaped sweep on sets simulated on the fly (see module doc).
 
     ``outputs`` and ``device`` as in :func:`run`; a ``frames_out`` list
@@ -273,7 +282,7 @@ def sweep(methods: list[str], size=(64, 96), context: int = 41, frames_per_scene
             group={"set": set_name, "noise": label, "motion": motion or "object",
                    "sigma_g": sg, "sigma_p": sp})
     result = run(frames, methods, repeats=repeats, progress=progress, outputs=outputs,
-                 device=device)
+                 device=device, ensemble=ensemble)
     if frames_out is not None:
         frames_out.extend(frames)
     result["table"] = summarize(result["rows"], methods, by=("set", "noise"))

@@ -12,8 +12,10 @@ A *method* is a callable ``fn(spikes, cfa, center) -> (H, W, 3)``:
   fires ``rate`` spikes per readout), shape (H, W, 3).
 
 Optional keyword arguments a method may declare are passed when it does:
-``rate`` (the sensor's ``full_scale_rate``), ``device`` and ``threads`` (for
-torch methods); any other option must be declared to be accepted.  A method
+``rate`` (the sensor's ``full_scale_rate``), ``device``, ``threads`` and
+``ensemble`` (for torch methods: the views of
+:func:`spikejdd.models.run_ensemble`); any other option must be declared to
+be accepted.  A method
 may also offer ``fn.window_for(n_readouts, **options) -> int``, the readouts it
 uses, which results report.
 
@@ -56,7 +58,7 @@ __all__ = ["Registry", "Method", "MethodError", "METHODS", "ENTRY_POINT_GROUP", 
 #: Entry-point group through which installed packages add methods.
 ENTRY_POINT_GROUP = "spikejdd.methods"
 #: Options a method receives only when its signature declares them (runtime settings).
-AMBIENT_OPTIONS = ("rate", "device", "threads")
+AMBIENT_OPTIONS = ("rate", "device", "threads", "ensemble")
 
 _NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_.\-+]*$")
 _TARGET_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")

@@ -122,3 +122,50 @@ def test_mask_planes_of_a_view_match_its_crop():
     np.testing.assert_array_equal(c.T, channel_index("GBRG", 8, 6))
     np.testing.assert_array_equal(c.T[1:-1, 1:-1], channel_index("GRBG", 6, 4))
     assert mask_planes("GRBG", 6, 4).shape == (4, 6, 4)
+
+
+@pytest.fixture(scope="module")
+def small_h5(tmp_path_factory):
+    from spikesim.io import write_h5
+
+    path = tmp_path_factory.mktemp("ens") / "pan.h5"
+    sensor = ss.Sensor(height=16, width=20, cfa="RGGB",
+                       noise=ss.noise.PaperNoise(sigma_g=10.0, sigma_p=0.0))
+    scene = ss.scenes.procedural("astronaut", motion="pan", size=(16, 20), speed=300.0)
+    write_h5(path, ss.simulate(scene, sensor, n_readouts=39, seed=3, gt_readouts=[19]))
+    return path
+
+
+def test_evaluate_passes_ensemble_to_methods_that_take_it(small_h5):
+    from spikejdd import evaluate
+
+    frames = evaluate.frames_from_dataset(small_h5, 39, 1)
+    methods = ["sjdd", "tfp+malvar2004"]
+    one, two = {}, {}
+    evaluate.run(frames, methods, repeats=1, progress=False, outputs=one, ensemble=1)
+    evaluate.run(frames, methods, repeats=1, progress=False, outputs=two)
+    f = frames[0]
+    np.testing.assert_array_equal(one[("sjdd", 0)],
+                                  sjdd_method(f.spikes, f.cfa, f.center, ensemble=1))
+    np.testing.assert_array_equal(two[("sjdd", 0)], sjdd_method(f.spikes, f.cfa, f.center))
+    np.testing.assert_array_equal(one[("tfp+malvar2004", 0)], two[("tfp+malvar2004", 0)])
+    with pytest.raises(SpikeSimValueError, match="ensemble"):
+        evaluate.run(frames, methods, repeats=1, progress=False, ensemble=3)
+
+
+def test_cli_ensemble_option(small_h5, tmp_path, capsys):
+    import cv2
+
+    from spikejdd.cli import main
+
+    pngs = {}
+    for k in ("1", "2"):
+        out = tmp_path / f"e{k}"
+        assert main(["reconstruct", str(small_h5), "--methods", "sjdd", "--ensemble", k,
+                     "--out", str(out), "--quiet"]) == 0, capsys.readouterr().err
+        (png,) = sorted(out.glob("*.png"))
+        pngs[k] = cv2.imread(str(png))
+    assert pngs["1"].shape == (16, 20, 3) and not np.array_equal(pngs["1"], pngs["2"])
+    with pytest.raises(SystemExit) as exc:
+        main(["evaluate", "--sweep", "--methods", "sjdd", "--ensemble", "3"])
+    assert exc.value.code == 2 and "--ensemble" in capsys.readouterr().err
