@@ -59,6 +59,9 @@ __all__ = ["Registry", "Method", "MethodError", "METHODS", "ENTRY_POINT_GROUP", 
 ENTRY_POINT_GROUP = "spikejdd.methods"
 #: Options a method receives only when its signature declares them (runtime settings).
 AMBIENT_OPTIONS = ("rate", "device", "threads", "ensemble")
+#: Values of the ``ensemble`` option (``spikejdd.models.ENSEMBLES``, tested equal;
+#: torch is not imported here).
+ENSEMBLE_VIEWS = (1, 2, 4)
 
 _NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_.\-+]*$")
 _TARGET_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
@@ -83,8 +86,9 @@ class MethodError(SpikeSimError, RuntimeError):
 class Method:
     """A resolved method: the callable, its name, description and bound options.
 
-    Calling it applies the protocol: ``rate``/``device``/``threads`` reach the
-    callable only if it declares them; other options must be declared.
+    Calling it applies the protocol: ``rate``/``device``/``threads``/``ensemble``
+    reach the callable only if it declares them (an invalid ``ensemble`` is
+    refused either way); other options must be declared.
     """
 
     name: str
@@ -94,6 +98,10 @@ class Method:
 
     def __call__(self, spikes, cfa, center, **options) -> np.ndarray:
         kwargs = {**self.options, **options}
+        views = kwargs.get("ensemble")
+        if views is not None and (isinstance(views, bool) or views not in ENSEMBLE_VIEWS
+                                  or not isinstance(views, (int, np.integer))):
+            raise bad_value("ensemble", views, "1, 2 or 4 views (None: the method's default)")
         names, var_kw = _accepted(self.fn)
         if not var_kw:
             unknown = sorted(k for k in kwargs if k not in names and k not in AMBIENT_OPTIONS)

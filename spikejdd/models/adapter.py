@@ -75,8 +75,11 @@ def model_inputs(spikes, cfa, center, window: int) -> tuple[torch.Tensor, torch.
     return x, m
 
 
-def check_ensemble(ensemble) -> int:
-    """``ensemble`` validated: one of :data:`ENSEMBLES`."""
+def check_ensemble(ensemble, default: int | None = None) -> int:
+    """``ensemble`` validated: one of :data:`ENSEMBLES`, or None for ``default``
+    (when one is given)."""
+    if ensemble is None and default is not None:
+        return default
     if (isinstance(ensemble, bool) or not isinstance(ensemble, (int, np.integer))
             or ensemble not in ENSEMBLES):
         raise bad_value("ensemble", ensemble, "1 (the input alone), 2 (with its transpose) or 4 "
@@ -112,11 +115,12 @@ def run_ensemble(module, x: torch.Tensor, cfa: str, ensemble: int, label: str = 
     mapped back to the input's pixels.
 
     A view keeps the Bayer pattern the module was given: where transposing or
-    rotating changes the pattern's phase, the view drops its first (and last)
-    row or column, whose pixels the other views cover.  Every output pixel is the
-    mean of the views that contain it (the identity view contains all).  With
-    ``ensemble`` = 1 this is the module's output itself, bit for bit.
+    rotating changes the pattern's phase, the view drops its first and last
+    rows, or columns, or both (a view left empty is skipped).  Every output
+    pixel is the mean of the views that contain it (the identity view contains
+    all).  With ``ensemble`` = 1 this is the module's output itself, bit for bit.
     """
+    ensemble = check_ensemble(ensemble)
     pattern = normalize_cfa(cfa)
     h, w = x.shape[-2:]
     mask = torch.from_numpy(mask_planes(pattern, h, w))[None].to(x.device)
@@ -124,18 +128,18 @@ def run_ensemble(module, x: torch.Tensor, cfa: str, ensemble: int, label: str = 
     if ensemble == 1:
         return first
     colours = torch.from_numpy(channel_index(pattern, h, w))
-    tile = colours[:2, :2]
     index = torch.arange(h * w, device=x.device).reshape(h, w)
     total = first.reshape(3, -1).clone()
     count = torch.ones(h * w, device=x.device, dtype=total.dtype)
     for v in range(1, ensemble):
         c = _view(colours, v)
         for dy, dx in ((0, 0), (0, 1), (1, 0), (1, 1)):
-            if torch.equal(c[dy:dy + 2, dx:dx + 2], tile):
+            hh, ww = c.shape[0] - 2 * dy, c.shape[1] - 2 * dx
+            if hh >= 1 and ww >= 1 and torch.equal(
+                    c[dy:dy + hh, dx:dx + ww], torch.from_numpy(channel_index(pattern, hh, ww))):
                 break
-        hh, ww = c.shape[0] - 2 * dy, c.shape[1] - 2 * dx
-        if hh < 2 or ww < 2:
-            continue  # too small to crop to the pattern: the other views cover it
+        else:
+            continue  # no crop of this view has the pattern (tiny images): skipped
         xv = _view(x, v)[..., dy:dy + hh, dx:dx + ww].contiguous()
         mv = torch.from_numpy(mask_planes(pattern, hh, ww))[None].to(x.device)
         iv = _view(index, v)[dy:dy + hh, dx:dx + ww].reshape(-1)
@@ -164,8 +168,9 @@ class TorchMethod:
     device : str
         Default device; a ``device`` option at call time overrides it.
     ensemble : int
-        Default self-ensemble (:func:`run_ensemble`: 1, 2 or 4 forward passes);
-        an ``ensemble`` option at call time overrides it.
+        Default self-ensemble (:func:`run_ensemble`: 1, 2 or 4 forward passes;
+        None: 1); an ``ensemble`` option at call time overrides it (None: this
+        default).
     """
 
     def __init__(self, module: torch.nn.Module, window: int = 39, device: str = "cpu",
@@ -177,7 +182,7 @@ class TorchMethod:
         self.module = module.eval()
         self.window = window
         self.device = device
-        self.ensemble = check_ensemble(ensemble)
+        self.ensemble = check_ensemble(ensemble, default=1)
         self.__doc__ = f"torch module {type(module).__name__}, {window}-readout window"
 
     def window_for(self, n_readouts: int) -> int:
@@ -186,7 +191,7 @@ class TorchMethod:
     def __call__(self, spikes, cfa, center, rate: float = 0.6,
                  device: str | None = None, ensemble: int | None = None) -> np.ndarray:
         dev = device or self.device
-        k = self.ensemble if ensemble is None else check_ensemble(ensemble)
+        k = check_ensemble(ensemble, default=self.ensemble)
         x, _ = model_inputs(spikes, cfa, center, self.window)
         if next(iter(self.module.parameters()), torch.empty(0)).device != torch.device(dev):
             self.module.to(dev)
@@ -203,11 +208,12 @@ def sjdd_method(spikes, cfa, center, rate: float = 0.6, weights: str = DEFAULT_W
     ends).  The shipped models were trained at ``full_scale_rate`` 0.6; another
     ``rate`` is accepted but out of their training range.  Threads are a
     per-process setting (:func:`spikejdd.runtime.set_threads`).  ``ensemble``:
-    the self-ensemble of :func:`run_ensemble` (default :data:`SJDD_ENSEMBLE`,
-    two forward passes; 1 is the plain model, twice as fast).  Returns
+    the self-ensemble of :func:`run_ensemble` (default, or None,
+    :data:`SJDD_ENSEMBLE`: two forward passes; 1 is the plain model, twice
+    as fast).  Returns
     (H, W, 3) linear RGB clipped to [0, 1].
     """
-    k = check_ensemble(ensemble)
+    k = check_ensemble(ensemble, default=SJDD_ENSEMBLE)
     model = cached_model(weights, str(device))
     x, _ = model_inputs(spikes, cfa, center, model.config.n_readouts)
     return _run(model, x, cfa, str(device), f"SJDD-Net ({weights})", k)

@@ -107,12 +107,65 @@ def test_torch_method_option_and_default():
     np.testing.assert_allclose(two, ((np.arange(6.0)[:, None] + np.arange(8.0)) / 2).clip(0, 1))
 
 
-@pytest.mark.parametrize("bad", [0, 3, 8, True, "2", 2.0])
+@pytest.mark.parametrize("bad", [0, 3, 8, True, "2", 2.0, 2.5, [2]])
 def test_bad_ensemble(bad):
+    """One message wherever the value arrives, the classical pipelines (which
+    ignore the option) included."""
+    spikes = _spikes(8, 8, t=39)
     with pytest.raises(SpikeSimValueError, match="ensemble"):
-        sjdd_method(_spikes(8, 8, t=39), "RGGB", 19, ensemble=bad)
+        sjdd_method(spikes, "RGGB", 19, ensemble=bad)
     with pytest.raises(SpikeSimValueError, match="ensemble"):
         TorchMethod(Probe(), window=3, ensemble=bad)
+    with pytest.raises(SpikeSimValueError, match="ensemble"):
+        run_ensemble(Probe(), torch.zeros(1, 3, 6, 8), "RGGB", bad)
+    for method in ("sjdd@sjdd-lite", "tfp+bilinear"):
+        with pytest.raises(SpikeSimValueError, match="ensemble"):
+            sj.reconstruct(spikes, "RGGB", method=method, center=19, ensemble=bad)
+
+
+def test_none_is_the_default():
+    spikes = _spikes(8, 10, t=39)
+    np.testing.assert_array_equal(sjdd_method(spikes, "RGGB", 19, ensemble=None),
+                                  sjdd_method(spikes, "RGGB", 19, ensemble=2))
+    rows = TorchMethod(Rows(), window=3, ensemble=None)
+    assert rows.ensemble == 1
+    four = TorchMethod(Rows(), window=3, ensemble=4)
+    np.testing.assert_array_equal(four(spikes[:3], "RGGB", 1, ensemble=None),
+                                  four(spikes[:3], "RGGB", 1))
+    sj.reconstruct(spikes, "RGGB", method="tfp+bilinear", center=19, ensemble=None)
+
+
+def test_registry_knows_the_same_views():
+    from spikejdd.models import ENSEMBLES
+    from spikejdd.registry import ENSEMBLE_VIEWS
+
+    assert ENSEMBLE_VIEWS == ENSEMBLES
+
+
+@pytest.mark.parametrize("shape, passes", [((1, 8), (1, 2, 4)), ((8, 1), (1, 2, 4)),
+                                           ((1, 1), (1, 2, 4)), ((2, 2), (1, 2, 2)),
+                                           ((2, 3), (1, 2, 2))])
+def test_thin_images_keep_the_views_that_fit(shape, passes):
+    """RGGB keeps its pattern when transposed, so a 1-pixel-thin image still
+    gets its transposed view; a 180° rotation of one row needs only its first
+    and last column dropped, while a 2×2 image's rotations (BGGR) would need
+    both rows dropped and are skipped (so would a 2×3 image's)."""
+
+    class Count(Probe):
+        calls = 0
+
+        def forward(self, spikes, mask):
+            Count.calls += 1
+            return super().forward(spikes, mask)
+
+    spikes = _spikes(*shape)
+    x = torch.from_numpy(spikes.astype(np.float32))[None]
+    for k, n in zip((1, 2, 4), passes):
+        Count.calls = 0
+        out = run_ensemble(Count(), x, "RGGB", k).numpy()
+        assert Count.calls == n
+        np.testing.assert_array_equal(out[0], spikes.sum(0))
+        np.testing.assert_array_equal(out[1], channel_index("RGGB", *shape) == 0)
 
 
 def test_mask_planes_of_a_view_match_its_crop():
