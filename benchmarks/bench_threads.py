@@ -2,7 +2,7 @@
 
 Each measurement is a fresh process (``spawn``-free: ``subprocess`` of this
 interpreter) that sets ``torch.set_num_threads(N)``, loads the shipped
-``sjdd-lite`` weights, reconstructs one 64×96 RGGB frame once untimed and then
+``sjdd-lite`` weights, reconstructs one 64×96 RGGB frame (one forward pass, ``ensemble=1``) once untimed and then
 ``--calls`` times; its median is one run.  Runs alternate between the thread
 counts so that background load affects both alike.  Writes
 ``benchmarks/results/threads.{json,md}`` with the median and range over runs
@@ -33,10 +33,11 @@ torch.set_num_threads(int(sys.argv[1]))
 from spikejdd.models import sjdd_method
 rng = np.random.default_rng(0)
 spikes = (rng.random((39, 64, 96)) < 0.3).astype(np.uint8)
-sjdd_method(spikes, "RGGB", 19)
+sjdd_method(spikes, "RGGB", 19, ensemble=1)  # one forward pass (the default runs two)
 ts = []
 for _ in range(int(sys.argv[2])):
-    t0 = time.perf_counter(); sjdd_method(spikes, "RGGB", 19); ts.append(time.perf_counter() - t0)
+    t0 = time.perf_counter(); sjdd_method(spikes, "RGGB", 19, ensemble=1)
+    ts.append(time.perf_counter() - t0)
 print(1000 * float(np.median(ts)))
 """
 
