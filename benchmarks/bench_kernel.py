@@ -156,8 +156,9 @@ def _median_range(values):
 def reset_and_call_size(size, n_long, repeats=3):
     """Same-run ratios (median and range over ``repeats`` alternating rounds):
     subtract and zero reset against modulo (noise off, static and moving
-    scene, ``n_long`` readouts streamed, :func:`_time_stream`); a 1-readout call against a 400-readout call
-    (static, noise off, whole ``simulate`` calls, RGGB and mono); mono's
+    scene, ``n_long`` readouts streamed, :func:`_time_stream`); a 1-readout
+    call against a 400-readout call (static, noise off, whole ``simulate``
+    calls, RGGB and mono); mono's
     400-readout time against RGGB's (≥ 1 means mono is at least as fast)."""
     out = {}
     for kind in ("static", "moving"):

@@ -2,9 +2,10 @@
 
 Each measurement is a fresh process (``spawn``-free: ``subprocess`` of this
 interpreter) that sets ``torch.set_num_threads(N)``, loads the shipped
-``sjdd-lite`` weights, reconstructs one 64×96 RGGB frame (one forward pass, ``ensemble=1``) once untimed and then
-``--calls`` times; its median is one run.  Runs alternate between the thread
-counts so that background load affects both alike.  Writes
+``sjdd-lite`` weights, reconstructs one 64×96 RGGB frame (one forward pass,
+``ensemble=1``) once untimed and then ``--calls`` times; its median is one
+run.  Runs alternate between the thread counts so that background load
+affects both alike.  Writes
 ``benchmarks/results/threads.{json,md}`` with the median and range over runs
 and the ratio to one thread.  The machine is described from itself
 (:func:`spikejdd.runtime.describe_machine`).

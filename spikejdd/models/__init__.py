@@ -55,7 +55,8 @@ from spikejdd.models.sjdd import (
 
 __all__ = ["SJDDNet", "SJDDConfig", "DEFAULT", "LITE", "PUBLISHED", "PUBLISHED_PARAMETERS",
            "load_pretrained", "list_pretrained", "pretrained_path", "resolve_weights",
-           "cached_model", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "sjdd_method", "TorchMethod", "run_ensemble", "ENSEMBLES",
+           "cached_model", "DEFAULT_WEIGHTS", "WEIGHTS_DIR", "sjdd_method", "TorchMethod",
+           "run_ensemble", "ENSEMBLES",
            "model_inputs", "save_checkpoint", "load_checkpoint", "load_model",
            "convert_published_state_dict", "to_published_state_dict", "check_state_dict",
            "CheckpointError", "DeformConv2d", "deform_conv2d", "torchvision_available",

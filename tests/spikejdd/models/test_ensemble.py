@@ -160,7 +160,7 @@ def test_thin_images_keep_the_views_that_fit(shape, passes):
 
     spikes = _spikes(*shape)
     x = torch.from_numpy(spikes.astype(np.float32))[None]
-    for k, n in zip((1, 2, 4), passes):
+    for k, n in zip((1, 2, 4), passes, strict=True):
         Count.calls = 0
         out = run_ensemble(Count(), x, "RGGB", k).numpy()
         assert Count.calls == n
