@@ -110,3 +110,26 @@ def test_a_static_frame_sampled_once_is_reused_only_for_the_same_image_and_cfa()
                 np.testing.assert_array_equal(ss.simulate(scene, sensor, 50, seed=3).packed, w)
         assert len(sim._FROZEN_FRAMES) > 0  # the warm runs had frames to reuse
         del scene
+
+
+def test_a_kept_frame_lent_to_the_kernel_is_never_pooled_or_written():
+    """A run of one chunk and one key frame passes the kept frame to the kernel
+    as it is: afterwards it is unchanged, no pooled buffer shares its memory,
+    and runs of several chunks (which copy it) give the same bits."""
+    sim = sys.modules["spikesim.simulate"]
+    img = np.random.default_rng(5).random((64, 300, 3)).astype(np.float32)
+    scene = ss.scenes.Static(img)  # a key frame of 80 kB: large enough to be pooled
+    sensor = ss.Sensor(height=64, width=300, cfa="RGGB",
+                       noise=ss.noise.PaperNoise(sigma_g=5.0, sigma_p=0.0))
+    sim._FROZEN_FRAMES.clear()
+    first = ss.simulate(scene, sensor, 40, seed=1, clean_twin=True)  # samples and keeps it
+    (kept,) = [v[1] for v in sim._FROZEN_FRAMES.values()]
+    before = kept.copy()
+    for n in (1, 40):
+        lent = ss.simulate(scene, sensor, n, seed=1, clean_twin=True)
+        np.testing.assert_array_equal(lent.packed, first.packed[:n])
+        np.testing.assert_array_equal(lent.clean_packed, first.clean_packed[:n])
+        chunked = ss.simulate(scene, sensor, n, seed=1, chunk_readouts=7)
+        np.testing.assert_array_equal(chunked.packed, lent.packed)
+    np.testing.assert_array_equal(kept, before)
+    assert not any(np.shares_memory(kept, a) for a in sim._KEY_POOL._free)
