@@ -164,6 +164,10 @@ def _time_call(fn, repeats: int):
     return out, float(np.median(times))
 
 
+#: What a report says of the self-ensemble when no ``ensemble`` was given.
+DEFAULT_VIEWS = "each method's default"
+
+
 def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: bool = True,
         outputs: dict | None = None, device: str | None = None,
         ensemble: int | None = None) -> dict:
@@ -204,7 +208,8 @@ def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: boo
             bar.update()
     bar.close()
     result = {"rows": rows, "summary": summarize(rows, methods),
-              "runtime": {"device": device or "cpu", "repeats": repeats}}
+              "runtime": {"device": device or "cpu", "repeats": repeats,
+                          "ensemble": ensemble or DEFAULT_VIEWS}}
     for key in ("noise", "motion"):
         if any(key in r for r in rows):
             result[f"by_{key}"] = summarize(rows, methods, by=(key,))
@@ -419,7 +424,8 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
         md += [f"Command: `{command}`", ""]
     md += [f"Machine: {machine['description']}.", "",
            f"Device: {rt.get('device', 'cpu')}; torch threads per process: "
-           f"{machine.get('torch_threads', '-')}.", "",
+           f"{machine.get('torch_threads', '-')}; self-ensemble of learned methods: "
+           f"{rt.get('ensemble', DEFAULT_VIEWS)}.", "",
            f"Conventions: {CONVENTIONS}.", "", "## Mean over all frames", ""]
     md += _md_table(result["summary"], methods)
     if "by_noise" in result:

@@ -195,8 +195,10 @@ def test_evaluate_passes_ensemble_to_methods_that_take_it(small_h5):
     frames = evaluate.frames_from_dataset(small_h5, 39, 1)
     methods = ["sjdd", "tfp+malvar2004"]
     one, two = {}, {}
-    evaluate.run(frames, methods, repeats=1, progress=False, outputs=one, ensemble=1)
-    evaluate.run(frames, methods, repeats=1, progress=False, outputs=two)
+    r1 = evaluate.run(frames, methods, repeats=1, progress=False, outputs=one, ensemble=1)
+    r2 = evaluate.run(frames, methods, repeats=1, progress=False, outputs=two)
+    assert r1["runtime"]["ensemble"] == 1
+    assert r2["runtime"]["ensemble"] == evaluate.DEFAULT_VIEWS
     f = frames[0]
     np.testing.assert_array_equal(one[("sjdd", 0)],
                                   sjdd_method(f.spikes, f.cfa, f.center, ensemble=1))
@@ -219,6 +221,11 @@ def test_cli_ensemble_option(small_h5, tmp_path, capsys):
         (png,) = sorted(out.glob("*.png"))
         pngs[k] = cv2.imread(str(png))
     assert pngs["1"].shape == (16, 20, 3) and not np.array_equal(pngs["1"], pngs["2"])
+    assert main(["evaluate", "--data", str(small_h5.parent), "--methods", "sjdd",
+                 "--ensemble", "4", "--repeats", "1", "--out", str(tmp_path / "ev" / "r"),
+                 "--quiet"]) == 0, capsys.readouterr().err
+    report = (tmp_path / "ev" / "r.md").read_text()
+    assert "self-ensemble of learned methods: 4" in report
     with pytest.raises(SystemExit) as exc:
         main(["evaluate", "--sweep", "--methods", "sjdd", "--ensemble", "3"])
     assert exc.value.code == 2 and "--ensemble" in capsys.readouterr().err
