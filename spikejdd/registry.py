@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from spikejdd.pipelines import PIPELINE_GRAMMAR, parse_pipeline, standard_pipelines
+from spikejdd.runtime import check_ensemble
 from spikesim.cfa import normalize_cfa
 from spikesim.errors import SpikeSimError, SpikeSimTypeError, SpikeSimValueError, bad_value
 from spikesim.estimate import window_bounds
@@ -59,9 +60,6 @@ __all__ = ["Registry", "Method", "MethodError", "METHODS", "ENTRY_POINT_GROUP", 
 ENTRY_POINT_GROUP = "spikejdd.methods"
 #: Options a method receives only when its signature declares them (runtime settings).
 AMBIENT_OPTIONS = ("rate", "device", "threads", "ensemble")
-#: Values of the ``ensemble`` option (``spikejdd.models.ENSEMBLES``, tested equal;
-#: torch is not imported here).
-ENSEMBLE_VIEWS = (1, 2, 4)
 
 _NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_.\-+]*$")
 _TARGET_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
@@ -98,10 +96,7 @@ class Method:
 
     def __call__(self, spikes, cfa, center, **options) -> np.ndarray:
         kwargs = {**self.options, **options}
-        views = kwargs.get("ensemble")
-        if views is not None and (isinstance(views, bool) or views not in ENSEMBLE_VIEWS
-                                  or not isinstance(views, (int, np.integer))):
-            raise bad_value("ensemble", views, "1, 2 or 4 views (None: the method's default)")
+        check_ensemble(kwargs.get("ensemble"))  # refused even where the method ignores it
         names, var_kw = _accepted(self.fn)
         if not var_kw:
             unknown = sorted(k for k in kwargs if k not in names and k not in AMBIENT_OPTIONS)

@@ -8,7 +8,9 @@
   one thread per process measured faster for SJDD-Net inference on a shared
   2-core machine, ``benchmarks/results/threads.md``);
 * :func:`machine_info` / :func:`describe_machine` — CPU model, cores, memory,
-  torch threads and GPUs, read from the machine itself for reports.
+  torch threads and GPUs, read from the machine itself for reports;
+* :func:`check_ensemble` — the ``ensemble`` option of learned methods
+  (views of :func:`spikejdd.models.run_ensemble`).
 """
 
 from __future__ import annotations
@@ -18,13 +20,31 @@ import platform
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from spikesim.errors import bad_value
 
 __all__ = ["check_device", "set_threads", "configure", "machine_info", "describe_machine",
-           "DEFAULT_CPU_THREADS"]
+           "DEFAULT_CPU_THREADS", "ENSEMBLES", "check_ensemble"]
 
 #: torch threads per process on the CPU when ``threads`` is not given.
 DEFAULT_CPU_THREADS = 1
+#: Views of the geometric self-ensemble (:func:`spikejdd.models.run_ensemble`):
+#: 1 the input alone, 2 with its transpose, 4 with the 180° rotations of both.
+ENSEMBLES = (1, 2, 4)
+
+
+def check_ensemble(ensemble, default: int | None = None) -> int | None:
+    """``ensemble`` validated: one of :data:`ENSEMBLES`; None gives ``default``
+    (None itself where no default is given: the option was not set)."""
+    if ensemble is None:
+        return default
+    if (isinstance(ensemble, bool) or not isinstance(ensemble, (int, np.integer))
+            or ensemble not in ENSEMBLES):
+        raise bad_value("ensemble", ensemble, "1 (the input alone), 2 (with its transpose) or 4 "
+                                              "(with the 180° rotations too); None: the "
+                                              "method's default")
+    return int(ensemble)
 
 
 def check_device(device: str | None, name: str = "device") -> str:

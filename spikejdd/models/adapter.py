@@ -36,16 +36,13 @@ import numpy as np
 import torch
 
 from spikejdd.models.pretrained import DEFAULT_WEIGHTS, cached_model
-from spikejdd.runtime import check_device
+from spikejdd.runtime import ENSEMBLES, check_device, check_ensemble
 from spikesim.cfa import channel_index, mask_planes, normalize_cfa
 from spikesim.errors import SpikeSimValueError, bad_value
 from spikesim.estimate import window_bounds
 
 __all__ = ["model_inputs", "run_ensemble", "ENSEMBLES", "TorchMethod", "sjdd_method"]
 
-#: Views of the geometric self-ensemble: 1 the input alone, 2 with its
-#: transpose, 4 with the 180° rotations of both.
-ENSEMBLES = (1, 2, 4)
 #: The ``sjdd`` method's default: the input and its transpose.  On the
 #: benchmark at GN σ = 10 it moves the shipped model from below to above the
 #: best classical pipeline on static and slow scenes, for twice the time
@@ -73,18 +70,6 @@ def model_inputs(spikes, cfa, center, window: int) -> tuple[torch.Tensor, torch.
     x = torch.from_numpy(np.ascontiguousarray(arr[start:stop], dtype=np.float32))[None]
     m = torch.from_numpy(mask_planes(pattern, h, w))[None]
     return x, m
-
-
-def check_ensemble(ensemble, default: int | None = None) -> int:
-    """``ensemble`` validated: one of :data:`ENSEMBLES`, or None for ``default``
-    (when one is given)."""
-    if ensemble is None and default is not None:
-        return default
-    if (isinstance(ensemble, bool) or not isinstance(ensemble, (int, np.integer))
-            or ensemble not in ENSEMBLES):
-        raise bad_value("ensemble", ensemble, "1 (the input alone), 2 (with its transpose) or 4 "
-                                              "(with the 180° rotations too)")
-    return int(ensemble)
 
 
 def _view(t: torch.Tensor, v: int) -> torch.Tensor:
@@ -120,7 +105,7 @@ def run_ensemble(module, x: torch.Tensor, cfa: str, ensemble: int, label: str = 
     pixel is the mean of the views that contain it (the identity view contains
     all).  With ``ensemble`` = 1 this is the module's output itself, bit for bit.
     """
-    ensemble = check_ensemble(ensemble)
+    ensemble = check_ensemble(ensemble, default=1)
     pattern = normalize_cfa(cfa)
     h, w = x.shape[-2:]
     mask = torch.from_numpy(mask_planes(pattern, h, w))[None].to(x.device)

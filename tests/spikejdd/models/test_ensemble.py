@@ -135,13 +135,6 @@ def test_none_is_the_default():
     sj.reconstruct(spikes, "RGGB", method="tfp+bilinear", center=19, ensemble=None)
 
 
-def test_registry_knows_the_same_views():
-    from spikejdd.models import ENSEMBLES
-    from spikejdd.registry import ENSEMBLE_VIEWS
-
-    assert ENSEMBLE_VIEWS == ENSEMBLES
-
-
 @pytest.mark.parametrize("shape, passes", [((1, 8), (1, 2, 4)), ((8, 1), (1, 2, 4)),
                                            ((1, 1), (1, 2, 4)), ((2, 2), (1, 2, 2)),
                                            ((2, 3), (1, 2, 2))])
