@@ -34,12 +34,18 @@ Every draw is keyed by (seed, source, pixel, cycle): source
 ``STREAM_WAIT`` for the Gamma variate of cycle ``c``, ``STREAM_RESIDUAL``
 for its second Gamma or residual count, ``STREAM_REFILL`` for a wait drawn
 from a readout's end after a modulo drop, and ``STREAM_JITTER`` for the jitter
-at the end of cycle ``c`` (``pixel_bits(readout_key(key, c), pixel)``), so chunking and thread
-count cannot change a bit.  Charge loss at reset (``reset_charge_loss`` f):
-the readout after a firing contributes ``(1 − f)·λ_n`` (binomial thinning of
-a Poisson count is Poisson).  Work per readout is one multiply-add and a
-compare per pixel (vectorised over the 64 lanes); the random draws happen per
-spike.
+at the end of cycle ``c``: ``readout_key(lane_key(key, pixel), c)``, the
+pixel's own key for the source (:func:`lane_key`, made once per block) and
+one hash per draw, so chunking and thread count cannot change a bit.  Charge
+loss at reset (``reset_charge_loss`` f): the readout after a firing
+contributes ``(1 − f)·λ_n`` (binomial thinning of a Poisson count is
+Poisson).
+
+Work per readout is one multiply-add and a compare per pixel (vectorised over
+the 64 lanes); the random draws happen per spike.  The lanes of a block that
+fire in a readout are compacted and :func:`fire_fast` draws the common case
+(three hashes, two normals, the first Marsaglia–Tsang candidate) for 8 lanes
+per vector step; :func:`fire_cycle`, the scalar definition, takes the rest.
 """
 
 from __future__ import annotations
@@ -48,8 +54,8 @@ import numpy as np
 from numba import njit
 
 from spikesim._poisson import LAMBDA_MAX, poisson
-from spikesim._simd import lowest_bit_index
-from spikesim.rng import log_positive, normal, pixel_bits, readout_key, uniform
+from spikesim._simd import lowest_bit_index, popcount, prefer_wide_vectors
+from spikesim.rng import _normal_body, log_positive, normal, pixel_bits, readout_key, uniform
 
 BLOCK = 64
 #: Reset codes, the values of ``spikesim._kernels.RESET_*`` (tested equal).
@@ -63,10 +69,21 @@ WAIT, NEED, CYCLE, AFTER_RESET = 0, 1, 2, 3
 
 _U1 = np.uint64(1)
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
+_inner = dict(_opts, _nrt=False)  # no reference counting of array arguments per call
 
 
 #: Shapes up to this use the product of uniforms (cheaper than a rejection).
 SMALL_SHAPE = 8
+_THIRD = 1.0 / 3.0
+_FIFTH = 1.0 / 5.0
+_SIXTH = 1.0 / 6.0
+
+
+@njit(inline="always", **_opts)
+def draw_word(bits, j):
+    """Word ``j`` of a draw's random bits: ``bits`` itself for ``j`` = 0, else
+    ``pixel_bits(bits, j)`` (a further hash, for the words a sampler rarely needs)."""
+    return bits if j == 0 else pixel_bits(bits, j)
 
 
 @njit(**_opts)
@@ -74,27 +91,28 @@ def gamma_integer(m, bits):
     """Gamma(m, 1) deviate for an integer-valued shape ``m`` ≥ 1 from 64 random bits.
 
     ``m`` ≤ :data:`SMALL_SHAPE`: ``−log Π_j u_j`` (a sum of ``m`` unit
-    exponentials, exact), ``u_j = uniform(pixel_bits(bits, j))``.  Larger:
+    exponentials, exact), ``u_j = uniform(draw_word(bits, j))``.  Larger:
     Marsaglia & Tsang, "A simple method for generating gamma variables", ACM
     TOMS 26(3), 2000: ``d = m − ⅓``, ``c = 1/√(9d)``, candidate
     ``d·(1 + c·x)³`` for a standard normal ``x``, accepted by the squeeze
     ``u < 1 − 0.0331·x⁴`` or ``log u < ½x² + d·(1 − v + log v)``; attempt
-    ``j`` uses ``normal(pixel_bits(bits, 2j))`` and
-    ``uniform(pixel_bits(bits, 2j + 1))``.  ``normal`` is the simulator's
-    deviate (within 1.4e-4 of Φ⁻¹(u), :func:`spikesim.rng.normal`), which
-    moves a variate by at most ``3c·1.4e-4`` relative (1.3e-5 at m = 1000);
-    logarithms are :func:`spikesim.rng.log_positive` (absolute error < 1e-13).
+    ``j`` uses ``normal(draw_word(bits, 2j))`` and
+    ``uniform(draw_word(bits, 2j + 1))``, so the first attempt costs one hash
+    beyond ``bits``.  ``normal`` is the simulator's deviate (within 1.4e-4 of
+    Φ⁻¹(u), :func:`spikesim.rng.normal`), which moves a variate by at most
+    ``3c·1.4e-4`` relative (1.3e-5 at m = 1000); logarithms are
+    :func:`spikesim.rng.log_positive` (absolute error < 1e-13).
     """
     if m <= SMALL_SHAPE:
         prod = 1.0
         for j in range(np.int64(m)):
-            prod *= uniform(pixel_bits(bits, np.uint64(j)))
+            prod *= uniform(draw_word(bits, np.uint64(j)))
         return -log_positive(prod)
-    d = m - 1.0 / 3.0
+    d = m - _THIRD
     c = 1.0 / np.sqrt(9.0 * d)
     j = np.uint64(0)
     while True:
-        x = normal(pixel_bits(bits, j))
+        x = normal(draw_word(bits, j))
         u = uniform(pixel_bits(bits, j + _U1))
         j += np.uint64(2)
         t = 1.0 + c * x
@@ -108,104 +126,248 @@ def gamma_integer(m, bits):
             return d * v
 
 
+@njit(inline="always", **_opts)
+def lane_key(key, pix):
+    """A pixel's key for one stream: ``pixel_bits(key, pix)``.  Cycle ``c``'s
+    bits are then ``readout_key(lane_key, c)``, one hash per draw (a
+    SplitMix64 sequence per pixel, seeded by this key)."""
+    return pixel_bits(key, pix)
+
+
 @njit(**_opts)
-def cycle_wait(need, key, counter, pix):
+def cycle_wait(need, lkey, counter):
     """Operational time (electrons) to the ``⌈need⌉``-th electron:
-    ``Gamma(⌈need⌉, 1)`` from ``pixel_bits(readout_key(key, counter), pix)``;
-    0 when ``need`` ≤ 0 (the pixel fires at the next readout)."""
+    ``Gamma(⌈need⌉, 1)`` from ``readout_key(lkey, counter)`` (``lkey`` the
+    pixel's :func:`lane_key`); 0 when ``need`` ≤ 0 (the pixel fires at the
+    next readout)."""
     if not need > 0.0:
         return 0.0
-    return gamma_integer(np.ceil(need), pixel_bits(readout_key(key, np.uint64(counter)), pix))
+    return gamma_integer(np.ceil(need), readout_key(lkey, np.uint64(counter)))
 
 
 #: A modulo drop needs ``h0`` electrons within the operational time ``L`` left in
 #: the readout after a crossing.  Chernoff's bound ``P(Poisson(L) ≥ h0) ≤
-#: exp(h0·(1 − x + ln x))``, ``x = L/h0``, is below 2⁻⁶⁴ (smaller than any
-#: probability a 64-bit draw can resolve) for ``x ≤ ½`` and ``h0 ≥ 230``
-#: (``230·(½ − ln 2) = −44.4 < ln 2⁻⁶⁴ = −44.36``).
-DROP_FREE_FRACTION = 0.5
-DROP_FREE_ELECTRONS = 230.0
+#: exp(h0·(1 − x + ln x))``, ``x = L/h0`` < 1, with ``s = 1 − x``:
+#: ``1 − x + ln x = −Σ_{k≥2} s^k/k ≤ −(s²/2 + s³/3 + s⁴/4 + s⁵/5 + s⁶/6)`` (every
+#: term of the series has the same sign, so a truncation bounds it).  Where
+#: ``h0`` times that sum is at least ``DROP_FREE_LOG`` (> 64·ln 2 = 44.36, with
+#: room for rounding) the drop has probability below 2⁻⁶⁴, smaller than any
+#: probability a 64-bit draw resolves.  At 1000 e⁻ per threshold this holds for
+#: ``x`` ≤ 0.73: every pixel filling less than 0.73 threshold per readout.
+DROP_FREE_LOG = 44.5
+#: Above this ``h0`` the rule is not evaluated (its ``h0⁶`` terms would overflow).
+DROP_RULE_MAX_H0 = 1e50
 
 
 @njit(inline="always", **_opts)
 def drop_negligible(left, h0):
     """True when a modulo drop (``h0`` electrons within operational time
-    ``left``) has probability below 2⁻⁶⁴, so it need not be drawn."""
-    return h0 >= DROP_FREE_ELECTRONS and left <= DROP_FREE_FRACTION * h0
+    ``left`` ≥ 0) has probability below 2⁻⁶⁴, so it need not be drawn.
+
+    The rule of :data:`DROP_FREE_LOG` times ``h0⁵`` (no division, branch-free:
+    it vectorises cheaply): with ``a = h0 − L = s·h0``,
+    ``a²·(h0⁴/2 + a·h0³/3 + a²·h0²/4 + a³·h0/5 + a⁴/6) ≥ DROP_FREE_LOG·h0⁵``."""
+    a = h0 - left
+    h2 = h0 * h0
+    h3 = h2 * h0
+    h4 = h3 * h0
+    p = a * _SIXTH + h0 * _FIFTH
+    p = p * a + h2 * 0.25
+    p = p * a + h3 * _THIRD
+    p = p * a + h4 * 0.5
+    return ((h0 >= 1.0) & (h0 <= DROP_RULE_MAX_H0) & (a > 0.0)
+            & (a * a * p >= DROP_FREE_LOG * (h4 * h0)))
 
 
 @njit(**_opts)
-def fire_cycle(wait, need, cycle, e, reset, jitter, key_wait, key_resid, key_refill, key_jitter,
+def fire_cycle(wait, need, cycle, e, reset, jitter, lk_wait, lk_jitter, key_resid, key_refill,
                pix):
     """End cycle ``cycle``, whose crossing (the ``m = ⌈need⌉``-th electron)
     came ``−wait`` ≥ 0 of operational time before the end of this readout;
     returns the next cycle's ``(wait, need, cycle)``.
 
     ``lead = need − m`` ∈ (−1, 0] places the threshold relative to the
-    crossing electron; the comparator jitter ``ε`` (``key_jitter``, counter
-    ``cycle``) moves the next threshold by ``E·ε``.  The electrons after the
-    crossing are a Poisson process, so (counter ``cycle + 1`` for the draws):
+    crossing electron; the comparator jitter ``ε`` (the pixel's jitter key
+    ``lk_jitter``, counter ``cycle``) moves the next threshold by ``E·ε``.
+    The electrons after the crossing are a Poisson process, so (counter
+    ``cycle + 1`` for the draws; ``lk_wait`` the pixel's wait key, and the
+    residual and refill keys made per pixel only when those rare draws happen):
 
     * zero reset discards them: the next cycle needs ``E(1 + ε)`` electrons
       from the readout's end;
     * subtract: the next threshold is ``d = lead + E + E·ε`` electrons after
-      the crossing, whose arrival is ``Gamma(⌈d⌉)`` after it (``key_wait``);
+      the crossing, whose arrival is ``Gamma(⌈d⌉)`` after it;
       the wait may stay ≤ 0 (the backlog fires at the next readouts);
     * modulo drops a whole threshold when the charge at the readout's end is
       ≥ 2θ, i.e. ≥ ``h0 = ⌈lead + E⌉`` electrons came after the crossing in
       this readout.  Where that has probability below 2⁻⁶⁴
-      (:func:`drop_negligible`: the usual case, a pixel filling less than half
-      a threshold per readout with ≥ 230 electrons per threshold), the next
-      crossing is drawn at once as for subtract.  Else the arrival of electron
-      ``h = min(h0, ⌈d⌉)`` is drawn (``key_wait``); after the readout's end,
+      (:func:`drop_negligible`: the usual case), the next crossing is drawn at
+      once as for subtract.  Else the arrival of electron
+      ``h = min(h0, ⌈d⌉)`` is drawn; after the readout's end,
       nothing was dropped and the next crossing is that arrival plus
-      ``Gamma(⌈d⌉ − h)`` (``key_resid``);
+      ``Gamma(⌈d⌉ − h)`` (residual key);
       else the count at the readout's end is ``h + Poisson(rest)``
-      (``key_resid``), the charge ``1 + x/E`` with ``x = h + Poisson − lead``
+      (residual key), the charge ``1 + x/E`` with ``x = h + Poisson − lead``
       is reset to ``x mod E`` exactly, and the next wait is drawn from the
-      readout's end (``key_refill``).
+      readout's end (refill key).
+
+    :func:`fire_fast` computes the common cases of this function for many
+    lanes at once, with the same arithmetic.
     """
     c1 = cycle + 1.0
     k1 = np.uint64(c1)
     m = np.ceil(need) if need > 0.0 else 0.0
     eps = 0.0
     if jitter > 0.0:
-        z = normal(pixel_bits(readout_key(key_jitter, np.uint64(cycle)), pix))
+        z = normal(readout_key(lk_jitter, np.uint64(cycle)))
         eps = min(max(jitter * z, -0.5), 0.5)
     if reset == ZERO:
         d = e + e * eps
-        return cycle_wait(d, key_wait, k1, pix), d, c1
+        return cycle_wait(d, lk_wait, k1), d, c1
     lead = need - m
     d = (lead + e) + e * eps
     hd = np.ceil(d) if d > 0.0 else 0.0
     if reset == SUBTRACT:
-        w = wait + cycle_wait(hd, key_wait, k1, pix)
+        w = wait + cycle_wait(hd, lk_wait, k1)
         return max(w, -BACKLOG_MAX * e), d, c1
     h0 = np.ceil(lead + e)
     # drawing the next crossing at once (one variate) is exact when no drop can happen
     h = hd if drop_negligible(-wait, h0) else min(h0, hd)
-    g = cycle_wait(h, key_wait, k1, pix)
+    g = cycle_wait(h, lk_wait, k1)
     if wait + g > 0.0:  # fewer than h electrons after the crossing in this readout
         if hd > h:
-            g += cycle_wait(hd - h, key_resid, k1, pix)
+            g += cycle_wait(hd - h, lane_key(key_resid, pix), k1)
         return wait + g, d, c1
     post = h + poisson(min(-(wait + g), LAMBDA_MAX),
-                       pixel_bits(readout_key(key_resid, k1), pix))
+                       readout_key(lane_key(key_resid, pix), k1))
     x = post - lead  # electrons beyond the threshold at the readout's end
     d2 = (e - np.fmod(x, e)) + e * eps
-    return cycle_wait(d2, key_refill, k1, pix), d2, c1
+    return cycle_wait(d2, lane_key(key_refill, pix), k1), d2, c1
+
+
+#: Rows of the event sampler's float64 work array (``EV_WORK_F``, 64): the fired
+#: lanes' wait, need, cycle and electrons (compacted), the new wait and need,
+#: and the Marsaglia–Tsang log test's terms (``u``, ``x²``, ``v``, ``d``).
+CW, CN, CC, CE, RW, RD, RU, RX2, RV, RDD = range(10)
+EV_WORK_F = 10
+#: Rows of its uint64 work array (``EV_WORK_U``, 64): the block's wait and jitter
+#: lane keys, the fired lanes' keys (compacted), their lane index, and the
+#: outcome of :func:`fire_fast` (:data:`SETTLED`, :data:`LOG_TEST`, :data:`REDO`).
+LKW, LKJ, CKW, CKJ, CI, OK = range(6)
+EV_WORK_U = 6
+#: :func:`fire_fast` outcomes: done; done if the log test accepts; run
+#: :func:`fire_cycle`.
+REDO, SETTLED, LOG_TEST = 0, 1, 2
+_SETTLED = np.uint64(SETTLED)
+_LOG_TEST = np.uint64(LOG_TEST)
+#: :func:`fire_fast` runs on whole vector steps: the fired lanes are padded to a
+#: multiple of this many (a 512-bit register of float64 for modulo reset; LLVM
+#: runs the smaller subtract and zero loops two registers per step, and a
+#: partial step falls to a scalar loop, measured 1.3× slower than padding).
+FAST_GROUP = 8
+FAST_GROUP_SMALL_LOOP = 16
+#: Up to this many fired lanes in a block go to :func:`fire_cycle` one by one
+#: (a vector step and its compaction cost more than a few scalar cycles).
+SCALAR_FIRES = 2
+
+
+@njit(**_inner)
+def fire_fast(count, reset, jitter, wf, wu):
+    """:func:`fire_cycle` for the ``count`` compacted fired lanes of ``wf``/``wu``
+    (rows :data:`CW` … and :data:`CKW` …), for the cases that need one jitter
+    normal and the first Marsaglia–Tsang candidate only: zero and subtract
+    reset, and modulo where no drop can happen and the next crossing lies
+    beyond this readout, shapes above :data:`SMALL_SHAPE`, both normals in the
+    body table (about 98 % of the spikes at 1000 e⁻ per threshold).  Writes the
+    new wait and need to rows :data:`RW`, :data:`RD`, the log test's terms to
+    :data:`RU` … :data:`RDD` and the outcome to row :data:`OK`.  The same
+    floating-point operations in the same order as :func:`fire_cycle`, so the
+    bits are the same; branch-free, so the loop runs on full vectors (it asks
+    for 512-bit ones, which the x86 default prefers not to use).  The squeeze
+    decides 90 % of the candidates; for the rest the caller evaluates the log
+    test from the stored terms (its two logarithms on every lane cost more
+    than the few lanes need).
+    """
+    prefer_wide_vectors()
+    # one loop per reset mode and jitter switch, so no loop carries a branch
+    # (with them as run-time values LLVM kept the loop scalar: 2–8× slower)
+    jittered = jitter > 0.0
+    if reset == MODULO:
+        if jittered:
+            _fire_fast_loop(count, MODULO, True, jitter, wf, wu)
+        else:
+            _fire_fast_loop(count, MODULO, False, jitter, wf, wu)
+    elif reset == SUBTRACT:
+        if jittered:
+            _fire_fast_loop(count, SUBTRACT, True, jitter, wf, wu)
+        else:
+            _fire_fast_loop(count, SUBTRACT, False, jitter, wf, wu)
+    elif jittered:
+        _fire_fast_loop(count, ZERO, True, jitter, wf, wu)
+    else:
+        _fire_fast_loop(count, ZERO, False, jitter, wf, wu)
 
 
 @njit(inline="always", **_opts)
-def event_step(level, gain, offset, electrons, ev, reset, jitter, loss, keys, pix0):
+def _fire_fast_loop(count, reset, jittered, jitter, wf, wu):
+    """:func:`fire_fast`'s loop for one reset mode and jitter switch (constants
+    at each call, so the branches on them fold away)."""
+    cw, cn, cc, ce, rw, rd = wf[CW], wf[CN], wf[CC], wf[CE], wf[RW], wf[RD]
+    ru, rx2, rv, rdd = wf[RU], wf[RX2], wf[RV], wf[RDD]
+    ckw, ckj, ok = wu[CKW], wu[CKJ], wu[OK]
+    zero = reset == ZERO
+    for i in range(count):
+        w = cw[i]
+        need = cn[i]
+        e = ce[i]
+        k = np.uint64(cc[i])
+        eps = 0.0
+        z_tail = False
+        if jittered:
+            z, z_tail = _normal_body(readout_key(ckj[i], k))
+            eps = min(max(jitter * z, -0.5), 0.5)
+        m = np.ceil(need) if need > 0.0 else 0.0
+        lead = need - m
+        d = e + e * eps if zero else (lead + e) + e * eps
+        hd = np.ceil(d) if d > 0.0 else 0.0
+        bits = readout_key(ckw[i], k + _U1)
+        x, x_tail = _normal_body(bits)
+        u = uniform(pixel_bits(bits, _U1))
+        dd = hd - _THIRD
+        c = 1.0 / np.sqrt(9.0 * dd)
+        t = 1.0 + c * x
+        v = t * t * t
+        x2 = x * x
+        g = dd * v
+        nw = g if zero else w + g
+        if reset == SUBTRACT:
+            nw = max(nw, -BACKLOG_MAX * e)
+        valid = (hd > SMALL_SHAPE) & (t > 0.0) & (not x_tail) & (not z_tail)
+        if reset == MODULO:
+            valid = valid & drop_negligible(-w, np.ceil(lead + e)) & (nw > 0.0)
+        # the squeeze accepts 90 % (1 − 0.0331·E[x⁴]); the caller's scalar log
+        # test (two logarithms, each with a division) nearly all the rest
+        squeezed = u < 1.0 - 0.0331 * x2 * x2
+        rw[i] = nw
+        rd[i] = d
+        ru[i] = u
+        rx2[i] = x2
+        rv[i] = v
+        rdd[i] = dd
+        ok[i] = np.uint64(valid) * (_SETTLED if squeezed else _LOG_TEST)
+
+
+@njit(inline="always", **_opts)
+def event_step(level, gain, offset, electrons, ev, reset, jitter, loss, keys, pix0, wf, wu):
     """One readout of the event-driven model for a 64-lane block; returns the
     spike mask.  ``level`` holds each lane's mean radiance of the readout;
     ``ev`` (4, 64) the block's state (rows :data:`WAIT`, :data:`NEED`,
     :data:`CYCLE`, :data:`AFTER_RESET`), updated in place; ``keys`` the
-    stream keys (wait, residual, refill, jitter).  The first loop
-    (every lane, branch-free) vectorises; only lanes that fire go on to
-    :func:`fire_cycle`.  Padding lanes have zero gain and offset, so they
-    never fire."""
+    stream keys (wait, residual, refill, jitter); ``wf``, ``wu`` the work
+    arrays of :func:`event_fire`.  The loop over every lane is branch-free, so
+    it vectorises.  Padding lanes have zero gain and offset, so they never
+    fire.  (Runs without charge loss take
+    :func:`spikesim._simd.event_wait_run64` instead, the same arithmetic.)"""
     wait = ev[WAIT]
     after = ev[AFTER_RESET]
     mask = np.uint64(0)
@@ -218,28 +380,92 @@ def event_step(level, gain, offset, electrons, ev, reset, jitter, loss, keys, pi
     if loss > 0.0:
         for lane in range(BLOCK):
             after[lane] = np.float64((mask >> np.uint64(lane)) & _U1)
-    m = mask
-    while m != 0:  # the lanes that fired, lowest first
-        lane = np.int64(lowest_bit_index(m))
-        m &= m - _U1
-        w, d, c = fire_cycle(wait[lane], ev[NEED, lane], ev[CYCLE, lane], electrons[lane], reset,
-                             jitter, keys[0], keys[1], keys[2], keys[3], pix0 + np.uint64(lane))
-        wait[lane] = w
-        ev[NEED, lane] = d
-        ev[CYCLE, lane] = c
+    if mask != 0:
+        event_fire(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu)
     return mask
 
 
 @njit(inline="always", **_opts)
-def init_event_block(ev, frac, electrons_row, x0, key_wait, pix0):
-    """Event state ``ev`` (4, 64) of the block whose first lane is pixel
-    ``pix0`` (column ``x0`` of ``electrons_row``) from its initial accumulator
-    ``frac`` (64 lanes, units of 2⁻⁶⁴ θ): ``D = E·(1 − frac·2⁻⁶⁴)``, cycle 0,
-    its wait, no charge loss pending."""
+def event_fire(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu):
+    """End the cycle of every lane of ``mask`` (non-zero) after a readout: the
+    lanes are compacted into the work arrays ``wf``, ``wu`` (:data:`EV_WORK_F`,
+    :data:`EV_WORK_U` rows of 64, whose rows :data:`LKW`, :data:`LKJ` hold the
+    block's lane keys, :func:`event_lane_keys`), :func:`fire_fast` settles most
+    of them on whole vectors, and :func:`fire_cycle` the rest."""
+    wait = ev[WAIT]
+    if popcount(mask) <= SCALAR_FIRES:  # too few for a vector step to pay
+        m = mask
+        while m != 0:
+            lane = lowest_bit_index(m)
+            m &= m - _U1
+            w, d, c = fire_cycle(wait[lane], ev[NEED, lane], ev[CYCLE, lane], electrons[lane],
+                                 reset, jitter, wu[LKW, lane], wu[LKJ, lane], keys[1], keys[2],
+                                 pix0 + lane)
+            wait[lane] = w
+            ev[NEED, lane] = d
+            ev[CYCLE, lane] = c
+        return
+    count = 0
+    m = mask
+    while m != 0:  # compact the lanes that fired, lowest first
+        lane = lowest_bit_index(m)
+        m &= m - _U1
+        wu[CI, count] = lane
+        wf[CW, count] = wait[lane]
+        wf[CN, count] = ev[NEED, lane]
+        wf[CC, count] = ev[CYCLE, lane]
+        wf[CE, count] = electrons[lane]
+        wu[CKW, count] = wu[LKW, lane]
+        wu[CKJ, count] = wu[LKJ, lane]
+        count += 1
+    group = FAST_GROUP if reset == MODULO else FAST_GROUP_SMALL_LOOP
+    full = (count + group - 1) // group * group
+    for i in range(count, full):  # whole vectors: harmless padding lanes
+        wf[CW, i] = -1.0
+        wf[CN, i] = 1000.0
+        wf[CC, i] = 0.0
+        wf[CE, i] = 1000.0
+    fire_fast(full, reset, jitter, wf, wu)
+    for i in range(count):
+        lane = wu[CI, i]
+        outcome = wu[OK, i]
+        if outcome == _LOG_TEST and (  # gamma_integer's second test, same operations
+                log_positive(wf[RU, i]) < 0.5 * wf[RX2, i]
+                + wf[RDD, i] * (1.0 - wf[RV, i] + log_positive(wf[RV, i]))):
+            outcome = _SETTLED
+        if outcome == _SETTLED:
+            wait[lane] = wf[RW, i]
+            ev[NEED, lane] = wf[RD, i]
+            ev[CYCLE, lane] = wf[CC, i] + 1.0
+        else:
+            w, d, c = fire_cycle(wait[lane], ev[NEED, lane], ev[CYCLE, lane], electrons[lane],
+                                 reset, jitter, wu[LKW, lane], wu[LKJ, lane], keys[1], keys[2],
+                                 pix0 + lane)
+            wait[lane] = w
+            ev[NEED, lane] = d
+            ev[CYCLE, lane] = c
+
+
+@njit(inline="always", **_opts)
+def event_lane_keys(keys, pix0, wu):
+    """The block's wait and jitter lane keys (:func:`lane_key` of ``keys[0]``,
+    ``keys[3]``) for pixels ``pix0 + lane``, into rows :data:`LKW`, :data:`LKJ`."""
+    for lane in range(BLOCK):
+        p = pix0 + np.uint64(lane)
+        wu[LKW, lane] = lane_key(keys[0], p)
+        wu[LKJ, lane] = lane_key(keys[3], p)
+
+
+@njit(inline="always", **_opts)
+def init_event_block(ev, frac, electrons_row, x0, wu):
+    """Event state ``ev`` (4, 64) of the block whose first lane is column
+    ``x0`` of ``electrons_row``, from its initial accumulator ``frac`` (64
+    lanes, units of 2⁻⁶⁴ θ) and its wait lane keys (row :data:`LKW` of ``wu``):
+    ``D = E·(1 − frac·2⁻⁶⁴)``, cycle 0, its wait, no charge loss pending."""
     for lane in range(BLOCK):
         e = electrons_row[x0 + lane]
         d = e * (1.0 - np.float64(frac[lane]) * 2.0**-64)
         ev[NEED, lane] = d
         ev[CYCLE, lane] = 0.0
         ev[AFTER_RESET, lane] = 0.0
-        ev[WAIT, lane] = cycle_wait(d, key_wait, np.uint64(0), pix0 + np.uint64(lane))
+        ev[WAIT, lane] = cycle_wait(d, wu[LKW, lane], 0)

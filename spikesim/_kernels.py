@@ -53,11 +53,21 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from spikesim._event import AFTER_RESET, event_step, init_event_block
-from spikesim._poisson import _shot_noise_block
+from spikesim._event import (
+    AFTER_RESET,
+    EV_WORK_F,
+    EV_WORK_U,
+    event_fire,
+    event_lane_keys,
+    event_step,
+    init_event_block,
+)
+from spikesim._event import WAIT as EV_WAIT
+from spikesim._poisson import LAMBDA_MAX, _shot_noise_block
 from spikesim._simd import (
     carry_run64,
     carry_run64_zero,
+    event_wait_run64,
     linear_carry_run64,
     linear_carry_run64_zero,
     paper_carry_add64,
@@ -73,6 +83,12 @@ from spikesim.rng import (
 )
 
 BLOCK = 64  # pixels per block: one uint64 spike mask = 8 packed bytes
+#: Work rows per task: 14 float64 and 3 uint64 of the per-readout steps, then
+#: the event sampler's (``spikesim._event.EV_WORK_F``, ``EV_WORK_U``).
+_EV_F0 = 14
+_EV_U0 = 3
+SCRATCH_F = _EV_F0 + EV_WORK_F
+SCRATCH_U = _EV_U0 + EV_WORK_U
 TWO64 = 2.0**64
 FAST_Q_LIMIT = 1.0 - 2.0**-20  # fast path only when every charge is safely < 1 θ
 #: Largest whole part of one readout's charge (thresholds).  A float64 charge
@@ -420,8 +436,10 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     block and one accumulator set (``model``, a :class:`PixelModel`; its state
     ``frac``, ``whole`` and ``ev`` are the block's contiguous copies).
 
-    ``scratch_f`` (14, 64) float64 and ``scratch_u`` (3, 64) uint64 are the
-    caller's work rows (allocated once per image row, not per block).
+    ``scratch_f`` (``SCRATCH_F``, 64) float64 and ``scratch_u`` (``SCRATCH_U``,
+    64) uint64 are the caller's work rows (allocated once per task, not per
+    block); the event sampler's rows come last, its lane keys already made
+    (:func:`spikesim._event.event_lane_keys`).
     ``model.fast_ok``: no per-readout noise; ``model.paper_fast_ok``: paper-mode
     noise only.  Either path is taken for a run only where every lane's whole part
     is 0 and every charge < 1 θ, where the three reset modes reduce to a
@@ -445,6 +463,8 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     qbuf = scratch_u[0]
     bbuf = scratch_u[1]
     pkeys = scratch_u[2]
+    ev_f = scratch_f[_EV_F0:]
+    ev_u = scratch_u[_EV_U0:]
     _charge_rows(model, y, x0, gain, offset)
     noise_rows = model.event  # electrons and charge_sd copied (the event path reads them)
     if noise_rows:
@@ -466,18 +486,32 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                                  runs.piece_b, runs.piece_len, runs.piece_phi, y, x0, ibuf)
                 _put(out, n0 - t_off, y, blk,
                      event_step(ibuf, gain, offset, electrons, ev, reset, model.jitter,
-                                model.loss, model.ev_keys, pix0))
+                                model.loss, model.ev_keys, pix0, ev_f, ev_u))
                 continue
             t_a = runs.ta[r]
             inv = runs.inv[r]
             _segment_radiance(frames, runs.a[r], runs.b[r], y, x0, ia, di)
+            if model.loss == 0.0:  # the waits stay in registers until a lane fires
+                n = n0
+                while n < n1:
+                    first, stride, nbytes = _word_at(out, n - t_off, y, blk)
+                    k, mask = event_wait_run64(ev[EV_WAIT], ia, di, gain, offset, electrons, n,
+                                               t_a, inv, LAMBDA_MAX, out, first, stride, nbytes,
+                                               n1 - n)
+                    n += np.int64(k)
+                    if n < n1:
+                        event_fire(mask, electrons, ev, reset, model.jitter, model.ev_keys,
+                                   pix0, ev_f, ev_u)
+                        _put(out, n - t_off, y, blk, mask)
+                        n += 1
+                continue
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
                 for lane in range(BLOCK):
                     ibuf[lane] = ia[lane] + di[lane] * phi
                 _put(out, n - t_off, y, blk,
                      event_step(ibuf, gain, offset, electrons, ev, reset, model.jitter,
-                                model.loss, model.ev_keys, pix0))
+                                model.loss, model.ev_keys, pix0, ev_f, ev_u))
         return
     fast_ok = model.fast_ok
     paper_fast_ok = model.paper_fast_ok
@@ -607,8 +641,8 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
     height = frames.shape[0]
     rows = max(1, min(8, height // 64))  # rows per task: at least 64 tasks when H ≥ 64
     for task in prange((height + rows - 1) // rows):
-        scratch_f = np.empty((14, BLOCK), np.float64)
-        scratch_u = np.empty((3, BLOCK), np.uint64)
+        scratch_f = np.empty((SCRATCH_F, BLOCK), np.float64)
+        scratch_u = np.empty((SCRATCH_U, BLOCK), np.uint64)
         ev = np.zeros((4, BLOCK), np.float64)  # a block's event state
         f = np.empty(BLOCK, np.uint64)  # a block's accumulator
         w = np.empty(BLOCK, np.int64)
@@ -623,8 +657,8 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
 def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
                   twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f, w, f0):
     """Row ``y`` of :func:`simulate_chunk` (same arguments), block by block,
-    with the task's contiguous work rows (``scratch_f`` (14, 64), ``scratch_u``
-    (3, 64), the block's event state ``ev`` (4, 64), accumulator ``f``, ``w``
+    with the task's contiguous work rows (``scratch_f``, ``scratch_u``, see
+    :func:`_block_runs`), the block's event state ``ev`` (4, 64), accumulator ``f``, ``w``
     and initial fraction ``f0`` (64))."""
     nblk = frames.shape[1]
     use_aux = model.event or model.loss > 0.0
@@ -635,11 +669,12 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
     ey = y * np.int64(model.electrons.shape[0] > 1)
     for b in range(nblk):
         x0 = b * BLOCK
+        if model.event:
+            event_lane_keys(model.ev_keys, np.uint64(y * width + x0), scratch_u[_EV_U0:])
         if init >= 0:
             _init_block(f, w, init_key, y, x0, width, init == 1)
             if model.event:
-                init_event_block(ev, f, model.electrons[ey], x0, model.ev_keys[0],
-                                 np.uint64(y * width + x0))
+                init_event_block(ev, f, model.electrons[ey], x0, scratch_u[_EV_U0:])
             elif use_aux:
                 for lane in range(BLOCK):
                     ev[AFTER_RESET, lane] = 0.0  # no charge loss pending

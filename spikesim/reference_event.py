@@ -41,14 +41,34 @@ def _mix(z: int) -> int:
 
 
 def _bits(key: int, counter: int, pixel: int) -> int:
-    """``pixel_bits(readout_key(key, counter), pixel)``."""
-    rk = _mix((key + counter * rng.G1) & _MASK)
-    return _mix(rk ^ ((pixel * rng.G2) & _MASK))
+    """The pixel's key for the stream, ``pixel_bits(key, pixel)``, then
+    ``readout_key`` of it for the counter: a SplitMix64 sequence per pixel."""
+    lane = _mix(key ^ ((pixel * rng.G2) & _MASK))
+    return _mix((lane + counter * rng.G1) & _MASK)
 
 
 def _sub_bits(bits: int, j: int) -> int:
     """``pixel_bits(bits, j)``: attempt ``j``'s bits of a rejection sampler."""
     return _mix(bits ^ ((j * rng.G2) & _MASK))
+
+
+def _word(bits: int, j: int) -> int:
+    """Word ``j`` of a Gamma draw: the bits themselves for ``j`` = 0, then ``_sub_bits``."""
+    return bits if j == 0 else _sub_bits(bits, j)
+
+
+def _drop_negligible(left: float, h0: float) -> bool:
+    """Chernoff's bound on P(Poisson(left) ≥ h0) below 2**-64: with s = 1 − left/h0,
+    ln of the bound ≤ −h0·(s²/2 + … + s⁶/6) (a truncated series of same-sign terms)."""
+    a = h0 - left  # = s·h0; the rule times h0**5, evaluated as the kernel does
+    h2 = h0 * h0
+    h3 = h2 * h0
+    h4 = h3 * h0
+    p = a * (1.0 / 6.0) + h0 * (1.0 / 5.0)
+    p = p * a + h2 * 0.25
+    p = p * a + h3 * (1.0 / 3.0)
+    p = p * a + h4 * 0.5
+    return 1.0 <= h0 <= 1e50 and a > 0.0 and a * a * p >= 44.5 * (h4 * h0)
 
 
 def _uniform(bits: int) -> float:
@@ -60,18 +80,18 @@ def _log(y: float) -> float:
 
 
 def gamma_ref(m: float, bits: int) -> float:
-    """Gamma(m, 1): ``−log Π u_j`` for m ≤ 8 (``u_j`` from ``_sub_bits(bits, j)``),
-    else Marsaglia–Tsang with attempt j from ``_sub_bits(bits, 2j)``, ``2j+1``."""
+    """Gamma(m, 1): ``−log Π u_j`` for m ≤ 8 (``u_j`` from ``_word(bits, j)``),
+    else Marsaglia–Tsang with attempt j from ``_word(bits, 2j)``, ``2j+1``."""
     if m <= 8:
         prod = 1.0
         for j in range(int(m)):
-            prod *= _uniform(_sub_bits(bits, j))
+            prod *= _uniform(_word(bits, j))
         return -_log(prod)
     d = m - 1.0 / 3.0
     c = 1.0 / math.sqrt(9.0 * d)
     j = 0
     while True:
-        x = float(normal_np(np.array([_sub_bits(bits, j)], np.uint64))[0])
+        x = float(normal_np(np.array([_word(bits, j)], np.uint64))[0])
         u = _uniform(_sub_bits(bits, j + 1))
         j += 2
         t = 1.0 + c * x
@@ -174,9 +194,8 @@ class EventReference:
             self.need[p], self.wait[p] = d, max(w, -_BACKLOG_MAX * e)
             return
         h0 = float(math.ceil(lead + e))  # this many after the crossing: charge ≥ 2θ at the end
-        # Chernoff: P(Poisson(L) >= h0) <= exp(h0 (1 - x + ln x)), x = L / h0, is below
-        # 2**-64 for x <= 1/2 and h0 >= 230; then no drop is drawn, only the next crossing
-        no_drop = h0 >= 230.0 and -wait <= 0.5 * h0
+        # a drop below 2**-64 is not drawn, only the next crossing
+        no_drop = _drop_negligible(-wait, h0)
         h = hd if no_drop else min(h0, hd)
         g = self._gamma(h, self.key_wait, c + 1, p)
         if wait + g > 0.0:

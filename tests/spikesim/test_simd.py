@@ -8,12 +8,14 @@ from numba import njit
 from spikesim._simd import (
     carry_run64,
     carry_run64_zero,
+    event_wait_run64,
     high_bits_at_least64,
     linear_carry_run64,
     linear_carry_run64_zero,
     lowest_bit_index,
     paper_carry_add64,
     paper_carry_add64_zero,
+    popcount,
     store_word,
 )
 
@@ -59,6 +61,17 @@ def _outside(values, shift, low, span):
 @njit
 def _ctz(m):
     return lowest_bit_index(m)
+
+
+@njit
+def _popcount(m):
+    return popcount(m)
+
+
+@njit
+def _event_run(wait, a, d, g, o, e, n0, t_a, inv, cap, out, first, stride, nbytes, count):
+    return event_wait_run64(wait, a, d, g, o, e, n0, t_a, inv, cap, out, first, stride, nbytes,
+                            count)
 
 
 def _mask(bits):
@@ -191,3 +204,40 @@ def test_store_word_writes_the_low_bytes_little_endian_and_nothing_else():
             expect = np.zeros(20, np.uint8)
             expect[index:index + nbytes] = np.arange(1, nbytes + 1)
             np.testing.assert_array_equal(out, expect)
+
+
+def test_popcount_counts_the_set_bits():
+    rng = np.random.default_rng(3)
+    for m in [0, 1, 2**63, 2**64 - 1, *rng.integers(0, 2**63, 50, dtype=np.uint64).tolist()]:
+        assert int(_popcount(np.uint64(m))) == bin(int(m)).count("1")
+
+
+def test_event_wait_run64_stops_at_the_first_firing_readout_like_the_scalar_step():
+    """Waits held in registers: each readout subtracts ``min((g·(a + d·phi) + o)·E,
+    cap)``; readouts with no firing store a zero word, the first firing readout
+    returns its index and mask (its word left to the caller), waits stored."""
+    rng = np.random.default_rng(8)
+    a, d = rng.random(64), 0.01 * rng.standard_normal(64)
+    g, o, e = 1.0 + 0.1 * rng.random(64), np.full(64, 0.002), 900.0 + 200.0 * rng.random(64)
+    n0, t_a, inv, cap = 5, 3.25, 0.125, 2.0**62
+    for base, spread, count in ((3000.0, 100.0, 40), (50.0, 30.0, 40), (1e9, 1e9, 7),
+                                (50.0, 30.0, 0), (0.0, 0.0, 5)):
+        wait = base + spread * rng.random(64)
+        out = np.full(200, 0xAA, np.uint8)
+        got = wait.copy()
+        k, mask = _event_run(got, a, d, g, o, e, n0, t_a, inv, cap, out, 3, 9, 8, count)
+        w = wait.copy()
+        want_k, want_mask = count, 0
+        for j in range(count):  # the scalar step of spikesim._event.event_step, no charge loss
+            phi = (np.float64(n0 + j) + 0.5 - t_a) * inv
+            lam = np.minimum((g * (a + d * phi) + o) * e, cap)
+            w = w - lam
+            if (w <= 0.0).any():
+                want_k, want_mask = j, _mask(w <= 0.0)
+                break
+        assert (int(k), int(mask)) == (want_k, want_mask)
+        assert base != 3000.0 or 2 <= want_k < count  # a firing inside the run
+        np.testing.assert_array_equal(got.view(np.uint64), w.view(np.uint64))
+        words = [out[3 + 9 * j: 11 + 9 * j] for j in range(int(k))]
+        assert all((word == 0).all() for word in words)
+        assert (out[3 + 9 * int(k): 11 + 9 * int(k)] == 0xAA).all() or int(k) == count == 0
