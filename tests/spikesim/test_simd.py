@@ -16,6 +16,7 @@ from spikesim._simd import (
     paper_carry_add64,
     paper_carry_add64_zero,
     popcount,
+    prefer_wide_vectors,
     store_word,
 )
 
@@ -241,3 +242,23 @@ def test_event_wait_run64_stops_at_the_first_firing_readout_like_the_scalar_step
         words = [out[3 + 9 * j: 11 + 9 * j] for j in range(int(k))]
         assert all((word == 0).all() for word in words)
         assert (out[3 + 9 * int(k): 11 + 9 * int(k)] == 0xAA).all() or int(k) == count == 0
+
+
+def test_prefer_wide_vectors_marks_the_calling_function():
+    """The attribute reaches the compiled function's definition (LLVM reads it
+    there), with ``noinline`` so that no caller's attributes replace it."""
+
+    @njit(cache=False)
+    def scaled(x):
+        prefer_wide_vectors()
+        out = np.empty_like(x)
+        for i in range(x.size):
+            out[i] = 2.0 * x[i]
+        return out
+
+    np.testing.assert_array_equal(scaled(np.arange(5.0)), 2.0 * np.arange(5.0))
+    lines = "\n".join(scaled.inspect_llvm().values()).splitlines()
+    definition = next(line for line in lines if line.startswith("define") and "6scaled" in line)
+    group = definition.rsplit("#", 1)[1].split()[0]  # its attribute group
+    attributes = next(line for line in lines if line.startswith(f"attributes #{group} "))
+    assert '"prefer-vector-width"="512"' in attributes and "noinline" in attributes
