@@ -38,6 +38,7 @@ import numpy as np
 
 import spikesim as ss
 from spikesim import rng
+from spikesim._simd import prefer_wide_vectors
 from spikesim.reference import reference_simulate
 
 RESULTS = Path(__file__).parent / "results"
@@ -94,28 +95,34 @@ def time_kernel(scene, sensor, n, seed=0, repeats=3):
     return best, first
 
 
+@numba.njit(error_model="numpy")
+def _draw_row(key, y, width, n, deviates, z, bits, keys):
+    """Row ``y`` of :func:`_draw_only`, compiled for the widest vectors as the
+    kernel's paper-noise step is (``spikesim._simd.prefer_wide_vectors``)."""
+    prefer_wide_vectors()
+    acc = np.uint64(0)
+    for x0 in range(0, width, 64):
+        rng.pixel_keys_into(np.uint64(y * width + x0), keys)
+        for k in range(n):
+            rk = rng.readout_key(key, k)
+            if deviates:
+                rng.normals_into(rk, keys, z, bits)
+                acc ^= np.uint64(z[k & 63] > 0.0)
+            else:
+                for i in range(64):
+                    bits[i] = rng.mix64(rk ^ keys[i])
+            acc ^= bits[k & 63]
+    return acc
+
+
 @numba.njit(parallel=True, error_model="numpy")
 def _draw_only(key, height, width, n, deviates, sink):
     """The random numbers of a paper-noise run and nothing else: per readout and
     64-pixel block the keyed 64-bit hashes (``deviates=False``) or the normal
     deviates made from them (``rng.normals_into``), rows in parallel."""
     for y in numba.prange(height):
-        z = np.empty(64)
-        bits = np.empty(64, np.uint64)
-        keys = np.empty(64, np.uint64)
-        acc = np.uint64(0)
-        for x0 in range(0, width, 64):
-            rng.pixel_keys_into(np.uint64(y * width + x0), keys)
-            for k in range(n):
-                rk = rng.readout_key(key, k)
-                if deviates:
-                    rng.normals_into(rk, keys, z, bits)
-                    acc ^= np.uint64(z[k & 63] > 0.0)
-                else:
-                    for i in range(64):
-                        bits[i] = rng.mix64(rk ^ keys[i])
-                acc ^= bits[k & 63]
-        sink[y] = acc
+        sink[y] = _draw_row(key, y, width, n, deviates, np.empty(64), np.empty(64, np.uint64),
+                            np.empty(64, np.uint64))
 
 
 def time_draws(size, n, deviates, repeats=3):
