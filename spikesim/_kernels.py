@@ -302,7 +302,7 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
 
     Compiled for the widest vectors: with the x86 default for AVX-512 CPUs
     (256-bit preferred) LLVM left the deviates' loop scalar, and paper-mode
-    runs took 1.3–1.6× longer."""
+    runs took 1.4–1.5× longer."""
     prefer_wide_vectors()
     paper_sg2 = model.paper_sg2
     paper_sp2 = model.paper_sp2
