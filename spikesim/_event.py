@@ -86,6 +86,13 @@ def draw_word(bits, j):
     return bits if j == 0 else pixel_bits(bits, j)
 
 
+@njit(inline="always", **_opts)
+def log_test_accepts(u, x2, v, d):
+    """Marsaglia–Tsang's second acceptance test, ``log u < ½x² + d·(1 − v + log v)``
+    (for the candidates the squeeze ``u < 1 − 0.0331·x⁴`` did not accept)."""
+    return log_positive(u) < 0.5 * x2 + d * (1.0 - v + log_positive(v))
+
+
 @njit(**_opts)
 def gamma_integer(m, bits):
     """Gamma(m, 1) deviate for an integer-valued shape ``m`` ≥ 1 from 64 random bits.
@@ -120,9 +127,7 @@ def gamma_integer(m, bits):
             continue
         v = t * t * t
         x2 = x * x
-        if u < 1.0 - 0.0331 * x2 * x2:
-            return d * v
-        if log_positive(u) < 0.5 * x2 + d * (1.0 - v + log_positive(v)):
+        if u < 1.0 - 0.0331 * x2 * x2 or log_test_accepts(u, x2, v, d):
             return d * v
 
 
@@ -398,12 +403,7 @@ def event_fire(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu):
         while m != 0:
             lane = lowest_bit_index(m)
             m &= m - _U1
-            w, d, c = fire_cycle(wait[lane], ev[NEED, lane], ev[CYCLE, lane], electrons[lane],
-                                 reset, jitter, wu[LKW, lane], wu[LKJ, lane], keys[1], keys[2],
-                                 pix0 + lane)
-            wait[lane] = w
-            ev[NEED, lane] = d
-            ev[CYCLE, lane] = c
+            _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu)
         return
     count = 0
     m = mask
@@ -429,21 +429,26 @@ def event_fire(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu):
     for i in range(count):
         lane = wu[CI, i]
         outcome = wu[OK, i]
-        if outcome == _LOG_TEST and (  # gamma_integer's second test, same operations
-                log_positive(wf[RU, i]) < 0.5 * wf[RX2, i]
-                + wf[RDD, i] * (1.0 - wf[RV, i] + log_positive(wf[RV, i]))):
+        if outcome == _LOG_TEST and log_test_accepts(wf[RU, i], wf[RX2, i], wf[RV, i],
+                                                     wf[RDD, i]):
             outcome = _SETTLED
         if outcome == _SETTLED:
             wait[lane] = wf[RW, i]
             ev[NEED, lane] = wf[RD, i]
             ev[CYCLE, lane] = wf[CC, i] + 1.0
         else:
-            w, d, c = fire_cycle(wait[lane], ev[NEED, lane], ev[CYCLE, lane], electrons[lane],
-                                 reset, jitter, wu[LKW, lane], wu[LKJ, lane], keys[1], keys[2],
-                                 pix0 + lane)
-            wait[lane] = w
-            ev[NEED, lane] = d
-            ev[CYCLE, lane] = c
+            _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu)
+
+
+@njit(inline="always", **_opts)
+def _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu):
+    """:func:`fire_cycle` for one lane of the block, its state updated in place."""
+    wait = ev[WAIT]
+    w, d, c = fire_cycle(wait[lane], ev[NEED, lane], ev[CYCLE, lane], electrons[lane], reset,
+                         jitter, wu[LKW, lane], wu[LKJ, lane], keys[1], keys[2], pix0 + lane)
+    wait[lane] = w
+    ev[NEED, lane] = d
+    ev[CYCLE, lane] = c
 
 
 @njit(inline="always", **_opts)

@@ -292,33 +292,30 @@ def high_bits_at_least64(typingctx, values, shift, low, span):
     return types.uint64(values, shift, low, span), codegen
 
 
-@intrinsic
-def popcount(typingctx, mask):
-    """Number of set bits of a uint64 (``ctpop``)."""
-    if mask != types.uint64:
-        return None
+def _bit_count(name, flag):
+    """An intrinsic calling LLVM's ``name`` on a uint64 (with a constant i1
+    ``flag`` argument where the intrinsic takes one)."""
 
-    def codegen(context, builder, sig, args):
-        i64 = ir.IntType(64)
-        fn = builder.module.declare_intrinsic("llvm.ctpop", [i64], ir.FunctionType(i64, [i64]))
-        return builder.call(fn, [args[0]])
+    @intrinsic
+    def bit_count(typingctx, mask):
+        if mask != types.uint64:
+            return None
 
-    return types.uint64(mask), codegen
+        def codegen(context, builder, sig, args):
+            i64, i1 = ir.IntType(64), ir.IntType(1)
+            params = [i64] if flag is None else [i64, i1]
+            fn = builder.module.declare_intrinsic(name, [i64], ir.FunctionType(i64, params))
+            return builder.call(fn, [args[0]] if flag is None else [args[0], i1(flag)])
+
+        return types.uint64(mask), codegen
+
+    return bit_count
 
 
-@intrinsic
-def lowest_bit_index(typingctx, mask):
-    """Index of the lowest set bit of a non-zero uint64 (``cttz``)."""
-    if mask != types.uint64:
-        return None
-
-    def codegen(context, builder, sig, args):
-        i64 = ir.IntType(64)
-        fnty = ir.FunctionType(i64, [i64, ir.IntType(1)])
-        fn = builder.module.declare_intrinsic("llvm.cttz", [i64], fnty)
-        return builder.call(fn, [args[0], ir.Constant(ir.IntType(1), 1)])
-
-    return types.uint64(mask), codegen
+popcount = _bit_count("llvm.ctpop", None)
+popcount.__doc__ = """Number of set bits of a uint64 (``ctpop``)."""
+lowest_bit_index = _bit_count("llvm.cttz", 1)
+lowest_bit_index.__doc__ = """Index of the lowest set bit of a non-zero uint64 (``cttz``)."""
 
 
 

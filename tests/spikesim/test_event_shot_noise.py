@@ -103,8 +103,8 @@ def test_vector_fire_step_equals_the_scalar_cycle_where_it_settles(reset, e, bri
                                  wf[_event.CE, i], reset, jitter, wu[_event.CKW, i],
                                  wu[_event.CKJ, i], np.uint64(5), np.uint64(6), np.uint64(i))
         if outcome == _event.LOG_TEST:
-            u, x2, v, d = (wf[r, i] for r in (_event.RU, _event.RX2, _event.RV, _event.RDD))
-            if _event.log_positive(u) < 0.5 * x2 + d * (1.0 - v + _event.log_positive(v)):
+            if _event.log_test_accepts(*(wf[r, i] for r in (_event.RU, _event.RX2, _event.RV,
+                                                              _event.RDD))):
                 outcome = _event.SETTLED
         if outcome == _event.SETTLED:
             settled += 1
