@@ -41,11 +41,15 @@ loss at reset (``reset_charge_loss`` f): the readout after a firing
 contributes ``(1 − f)·λ_n`` (binomial thinning of a Poisson count is
 Poisson).
 
-Work per readout is one multiply-add and a compare per pixel (vectorised over
-the 64 lanes); the random draws happen per spike.  The lanes of a block that
-fire in a readout are compacted and :func:`fire_fast` draws the common case
-(three hashes, two normals, the first Marsaglia–Tsang candidate) for 8 lanes
-per vector step; :func:`fire_cycle`, the scalar definition, takes the rest.
+Work per readout is one multiply-add, two compares and a select per pixel
+(vectorised over the 64 lanes); the random draws happen per spike.  A draw
+depends only on the pixel's state and keys, not on when it fires, so each lane
+caches its next cycle's draw (:func:`prepare_fast`: three hashes, two normals,
+the first Marsaglia–Tsang candidate, drawn for 8 lanes per vector step, ahead
+of the firing), and the readout loop
+(:func:`spikesim._simd.event_cached_run64`) takes a firing from the cache in
+registers; :func:`event_settle` handles the firings it cannot take, and
+:func:`fire_cycle`, the scalar definition, what the cache cannot hold.
 """
 
 from __future__ import annotations
@@ -54,8 +58,17 @@ import numpy as np
 from numba import njit
 
 from spikesim._poisson import LAMBDA_MAX, poisson
-from spikesim._simd import lowest_bit_index, popcount, prefer_wide_vectors
-from spikesim.rng import _normal_body, log_positive, normal, pixel_bits, readout_key, uniform
+from spikesim._simd import advance_cycles64, lowest_bit_index, popcount, prefer_wide_vectors
+from spikesim.rng import (
+    _bits_f64,
+    _f64_bits,
+    _normal_body,
+    log_positive,
+    normal,
+    pixel_bits,
+    readout_key,
+    uniform,
+)
 
 BLOCK = 64
 #: Reset codes, the values of ``spikesim._kernels.RESET_*`` (tested equal).
@@ -86,10 +99,27 @@ def draw_word(bits, j):
     return bits if j == 0 else pixel_bits(bits, j)
 
 
+#: Marsaglia–Tsang's squeeze, ``u < 1 − SQUEEZE·c²·x⁴`` where ``t = 1 + c·x ≥ ½``.
+#: With ``y = c·x``, ``9dc² = 1`` and Taylor's remainder for ``ln(1 + y)``, the
+#: log test's right side is exactly ``−c²x⁴/(12(1 + ξ)⁴)`` for some ξ between 0
+#: and y, at least ``−(4/3)c²x⁴`` when ``y ≥ −½``; and ``ln u ≤ u − 1``.  So the
+#: squeeze only accepts what the log test accepts.  It leaves ``4c² = 4/(9d)``
+#: of the candidates to the log test (0.04 % at 1000 electrons), where the
+#: squeeze of the paper, ``u < 1 − 0.0331·x⁴``, leaves 10 %.
+SQUEEZE = 4.0 / 3.0
+
+
+@njit(inline="always", **_opts)
+def squeeze_accepts(u, x2, c, t):
+    """The squeeze :data:`SQUEEZE`: ``t ≥ ½`` and ``u < 1 − (4/3)·c²·x⁴``
+    (``x2 = x²``, ``t = 1 + c·x``); branch-free."""
+    return (t >= 0.5) & (u < 1.0 - SQUEEZE * (c * c) * (x2 * x2))
+
+
 @njit(inline="always", **_opts)
 def log_test_accepts(u, x2, v, d):
-    """Marsaglia–Tsang's second acceptance test, ``log u < ½x² + d·(1 − v + log v)``
-    (for the candidates the squeeze ``u < 1 − 0.0331·x⁴`` did not accept)."""
+    """Marsaglia–Tsang's acceptance test, ``log u < ½x² + d·(1 − v + log v)``
+    (for the candidates :func:`squeeze_accepts` did not accept)."""
     return log_positive(u) < 0.5 * x2 + d * (1.0 - v + log_positive(v))
 
 
@@ -102,7 +132,7 @@ def gamma_integer(m, bits):
     Marsaglia & Tsang, "A simple method for generating gamma variables", ACM
     TOMS 26(3), 2000: ``d = m − ⅓``, ``c = 1/√(9d)``, candidate
     ``d·(1 + c·x)³`` for a standard normal ``x``, accepted by the squeeze
-    ``u < 1 − 0.0331·x⁴`` or ``log u < ½x² + d·(1 − v + log v)``; attempt
+    (:data:`SQUEEZE`, tighter than the paper's) or ``log u < ½x² + d·(1 − v + log v)``; attempt
     ``j`` uses ``normal(draw_word(bits, 2j))`` and
     ``uniform(draw_word(bits, 2j + 1))``, so the first attempt costs one hash
     beyond ``bits``.  ``normal`` is the simulator's deviate (within 1.4e-4 of
@@ -127,7 +157,7 @@ def gamma_integer(m, bits):
             continue
         v = t * t * t
         x2 = x * x
-        if u < 1.0 - 0.0331 * x2 * x2 or log_test_accepts(u, x2, v, d):
+        if squeeze_accepts(u, x2, c, t) or log_test_accepts(u, x2, v, d):
             return d * v
 
 
@@ -182,6 +212,57 @@ def drop_negligible(left, h0):
     p = p * a + h4 * 0.5
     return ((h0 >= 1.0) & (h0 <= DROP_RULE_MAX_H0) & (a > 0.0)
             & (a * a * p >= DROP_FREE_LOG * (h4 * h0)))
+
+
+#: Relative margin of :func:`drop_free_limit` over rounding (the bound it
+#: implies holds with a factor ``1 + 2e-6``, rounding moves it by ~1e-15).
+_LIMIT_MARGIN = 1.0 + 1e-6
+#: Up to here the margin exceeds the rounding of ``h0 − left`` (an ulp of h0).
+_LIMIT_MAX_H0 = 2.0**52
+
+
+@njit(inline="always", **_opts)
+def drop_free_limit(h0):
+    """An operational time ``L*`` such that every ``left`` ≤ ``L*`` passes
+    :func:`drop_negligible` for this ``h0`` (−∞ outside 1 ≤ ``h0`` ≤ 2⁵², where
+    the margin no longer covers the rounding of ``h0 − left``):
+    ``L* = h0 − √(2·DROP_FREE_LOG·h0)·(1 + 10⁻⁶)``.  Then ``a = h0 − left`` ≥
+    ``√(2·DROP_FREE_LOG·h0)``, so ``a²·h0⁴/2``, the first of the rule's
+    positive terms, already reaches ``DROP_FREE_LOG·h0⁵``.  One comparison
+    instead of the rule's polynomial, for the per-readout loop; it allows 0.70
+    threshold per readout at 1000 e⁻ where the rule allows 0.73, and the few
+    lanes between go to the rule itself."""
+    limit = h0 - np.sqrt(2.0 * DROP_FREE_LOG * h0) * _LIMIT_MARGIN
+    return limit if (h0 >= 1.0) & (h0 <= _LIMIT_MAX_H0) else -np.inf
+
+
+#: Shapes below this are read from :data:`SHAPE_TABLES` by :func:`prepare_fast`
+#: (every shape of a pixel with up to 21 800 electrons per threshold, the jitter
+#: clipped at +½; larger ones go to the scalar cycle, about 3× slower).
+TABLE_SHAPES = 1 << 15
+
+
+def shape_tables(n: int = TABLE_SHAPES) -> np.ndarray:
+    """(2, n) float64 tables by integer shape ``h`` that :func:`prepare_fast`
+    reads instead of two square roots and a division per spike: row 0
+    Marsaglia–Tsang's ``c = 1/√(9(h − ⅓))`` (0 for ``h`` ≤ :data:`SMALL_SHAPE`;
+    the floating-point operations of :func:`gamma_integer`), row 1
+    :func:`drop_free_limit` ``(h)``."""
+    h = np.arange(n, dtype=np.float64)
+    tables = np.zeros((2, n))
+    big = h > SMALL_SHAPE
+    tables[0, big] = 1.0 / np.sqrt(9.0 * (h[big] - _THIRD))
+    tables[1] = -np.inf
+    pos = h >= 1.0
+    tables[1, pos] = h[pos] - np.sqrt(2.0 * DROP_FREE_LOG * h[pos]) * _LIMIT_MARGIN
+    return tables
+
+
+#: The tables, a compile-time constant of the kernel (so LLVM knows no store
+#: aliases them, and :func:`prepare_fast`'s loop vectorises with their gathers).
+SHAPE_TABLES = shape_tables()
+_C_OF = SHAPE_TABLES[0].copy()
+_LIMIT_OF = SHAPE_TABLES[1].copy()
 
 
 @njit(**_opts)
@@ -250,79 +331,81 @@ def fire_cycle(wait, need, cycle, e, reset, jitter, lk_wait, lk_jitter, key_resi
     return cycle_wait(d2, lane_key(key_refill, pix), k1), d2, c1
 
 
-#: Rows of the event sampler's float64 work array (``EV_WORK_F``, 64): the fired
-#: lanes' wait, need, cycle and electrons (compacted), the new wait and need,
-#: and the Marsaglia–Tsang log test's terms (``u``, ``x²``, ``v``, ``d``).
-CW, CN, CC, CE, RW, RD, RU, RX2, RV, RDD = range(10)
-EV_WORK_F = 10
+
+
+#: Rows of the event sampler's float64 work array (``EV_WORK_F``, 64): the lanes
+#: to draw, compacted (need, cycle, electrons), what :func:`prepare_fast` makes
+#: of them (wait increment, next need, lowest wait it applies at), and the
+#: block's cache by lane (:data:`GNEXT`, :data:`DNEXT`, :data:`WMIN`; a lane
+#: is *ready*, its cache holding its current cycle's draw, where its ``WMIN``
+#: is below +∞).
+CN, CC, CE, RG, RD, RL, GNEXT, DNEXT, WMIN = range(9)
+EV_WORK_F = 9
 #: Rows of its uint64 work array (``EV_WORK_U``, 64): the block's wait and jitter
-#: lane keys, the fired lanes' keys (compacted), their lane index, and the
-#: outcome of :func:`fire_fast` (:data:`SETTLED`, :data:`LOG_TEST`, :data:`REDO`).
-LKW, LKJ, CKW, CKJ, CI, OK = range(6)
-EV_WORK_U = 6
-#: :func:`fire_fast` outcomes: done; done if the log test accepts; run
-#: :func:`fire_cycle`.
-REDO, SETTLED, LOG_TEST = 0, 1, 2
-_SETTLED = np.uint64(SETTLED)
-_LOG_TEST = np.uint64(LOG_TEST)
-#: :func:`fire_fast` runs on whole vector steps: the fired lanes are padded to a
-#: multiple of this many (a 512-bit register of float64 for modulo reset; LLVM
-#: runs the smaller subtract and zero loops two registers per step, and a
-#: partial step falls to a scalar loop, measured 1.3× slower than padding).
+#: lane keys, the compacted lanes' keys and lane index, :func:`prepare_fast`'s verdict
+#: (1: the cache holds the cycle's draw), and the cache's mask (row
+#: :data:`MASKS`, word :data:`FRESH`).
+LKW, LKJ, CKW, CKJ, CI, OK, MASKS = range(7)
+EV_WORK_U = 7
+#: Word of row :data:`MASKS`: the lanes whose cache was made for their current
+#: cycle, ready or not (the others are *stale*).
+FRESH = 0
+#: :func:`prepare_fast` runs on whole vectors: the lanes are padded to a
+#: multiple of this many (a 512-bit register of float64).
 FAST_GROUP = 8
-FAST_GROUP_SMALL_LOOP = 16
-#: Up to this many fired lanes in a block go to :func:`fire_cycle` one by one
-#: (a vector step and its compaction cost more than a few scalar cycles).
-SCALAR_FIRES = 2
 
 
 @njit(**_inner)
-def fire_fast(count, reset, jitter, wf, wu):
-    """:func:`fire_cycle` for the ``count`` compacted fired lanes of ``wf``/``wu``
-    (rows :data:`CW` … and :data:`CKW` …), for the cases that need one jitter
-    normal and the first Marsaglia–Tsang candidate only: zero and subtract
-    reset, and modulo where no drop can happen and the next crossing lies
-    beyond this readout, shapes above :data:`SMALL_SHAPE`, both normals in the
-    body table (about 98 % of the spikes at 1000 e⁻ per threshold).  Writes the
-    new wait and need to rows :data:`RW`, :data:`RD`, the log test's terms to
-    :data:`RU` … :data:`RDD` and the outcome to row :data:`OK`.  The same
-    floating-point operations in the same order as :func:`fire_cycle`, so the
-    bits are the same; branch-free, so the loop runs on full vectors (it asks
-    for 512-bit ones, which the x86 default prefers not to use).  The squeeze
-    decides 90 % of the candidates; for the rest the caller evaluates the log
-    test from the stored terms (its two logarithms on every lane cost more
-    than the few lanes need).
+def prepare_fast(count, reset, jitter, wf, wu):
+    """The part of :func:`fire_cycle` that does not depend on the wait, for the
+    ``count`` compacted lanes of ``wf``/``wu`` (rows :data:`CN`, :data:`CC`,
+    :data:`CE`, :data:`CKW`, :data:`CKJ`): the jitter normal, the next need
+    ``d`` (row :data:`RD`), the first Marsaglia–Tsang candidate ``g`` of
+    ``Gamma(⌈d⌉)`` (row :data:`RG`), and the lowest wait at the firing for
+    which ``g`` gives the new wait (row :data:`RL`; −∞ for subtract and
+    zero; modulo: ``−wait`` within :func:`drop_free_limit` and
+    ``wait + g > 0``, i.e. ``wait`` above ``−g``, whose next float up it
+    takes).  Row
+    :data:`OK` is 1 where that is the cycle's draw: shape above
+    :data:`SMALL_SHAPE` and below :data:`TABLE_SHAPES`, both normals in the
+    body table, accepted by the squeeze (98.4 % of the spikes at 1000 e⁻ per
+    threshold: the normals' tails take most of the rest); else
+    :func:`fire_cycle` draws it at the firing.
+
+    At the firing, ``wait + g`` (modulo and subtract, clamped) or ``g``
+    (zero) is then :func:`fire_cycle`'s new wait where ``wait`` is at least
+    that lowest wait, bit for bit: the same floating-point
+    operations in the same order.  Branch-free, one loop per reset mode and
+    jitter switch (with them as run-time values LLVM kept the loop scalar,
+    2–8× slower), on 512-bit vectors (:func:`prefer_wide_vectors`).
     """
     prefer_wide_vectors()
-    # one loop per reset mode and jitter switch, so no loop carries a branch
-    # (with them as run-time values LLVM kept the loop scalar: 2–8× slower)
     jittered = jitter > 0.0
     if reset == MODULO:
         if jittered:
-            _fire_fast_loop(count, MODULO, True, jitter, wf, wu)
+            _prepare_loop(count, MODULO, True, jitter, wf, wu)
         else:
-            _fire_fast_loop(count, MODULO, False, jitter, wf, wu)
+            _prepare_loop(count, MODULO, False, jitter, wf, wu)
     elif reset == SUBTRACT:
         if jittered:
-            _fire_fast_loop(count, SUBTRACT, True, jitter, wf, wu)
+            _prepare_loop(count, SUBTRACT, True, jitter, wf, wu)
         else:
-            _fire_fast_loop(count, SUBTRACT, False, jitter, wf, wu)
+            _prepare_loop(count, SUBTRACT, False, jitter, wf, wu)
     elif jittered:
-        _fire_fast_loop(count, ZERO, True, jitter, wf, wu)
+        _prepare_loop(count, ZERO, True, jitter, wf, wu)
     else:
-        _fire_fast_loop(count, ZERO, False, jitter, wf, wu)
+        _prepare_loop(count, ZERO, False, jitter, wf, wu)
 
 
 @njit(inline="always", **_opts)
-def _fire_fast_loop(count, reset, jittered, jitter, wf, wu):
-    """:func:`fire_fast`'s loop for one reset mode and jitter switch (constants
-    at each call, so the branches on them fold away)."""
-    cw, cn, cc, ce, rw, rd = wf[CW], wf[CN], wf[CC], wf[CE], wf[RW], wf[RD]
-    ru, rx2, rv, rdd = wf[RU], wf[RX2], wf[RV], wf[RDD]
+def _prepare_loop(count, reset, jittered, jitter, wf, wu):
+    """:func:`prepare_fast`'s loop for one reset mode and jitter switch
+    (constants at each call, so the branches on them fold away)."""
+    cn, cc, ce, rg, rd, rl = wf[CN], wf[CC], wf[CE], wf[RG], wf[RD], wf[RL]
     ckw, ckj, ok = wu[CKW], wu[CKJ], wu[OK]
+    top = np.float64(TABLE_SHAPES - 1)
     zero = reset == ZERO
     for i in range(count):
-        w = cw[i]
         need = cn[i]
         e = ce[i]
         k = np.uint64(cc[i])
@@ -339,27 +422,131 @@ def _fire_fast_loop(count, reset, jittered, jitter, wf, wu):
         x, x_tail = _normal_body(bits)
         u = uniform(pixel_bits(bits, _U1))
         dd = hd - _THIRD
-        c = 1.0 / np.sqrt(9.0 * dd)
+        c = _C_OF[np.uint64(min(hd, top))]  # 1/√(9·dd), read
         t = 1.0 + c * x
-        v = t * t * t
-        x2 = x * x
-        g = dd * v
-        nw = g if zero else w + g
-        if reset == SUBTRACT:
-            nw = max(nw, -BACKLOG_MAX * e)
-        valid = (hd > SMALL_SHAPE) & (t > 0.0) & (not x_tail) & (not z_tail)
-        if reset == MODULO:
-            valid = valid & drop_negligible(-w, np.ceil(lead + e)) & (nw > 0.0)
-        # the squeeze accepts 90 % (1 − 0.0331·E[x⁴]); the caller's scalar log
-        # test (two logarithms, each with a division) nearly all the rest
-        squeezed = u < 1.0 - 0.0331 * x2 * x2
-        rw[i] = nw
+        g = dd * (t * t * t)
+        rg[i] = g
         rd[i] = d
-        ru[i] = u
-        rx2[i] = x2
-        rv[i] = v
-        rdd[i] = dd
-        ok[i] = np.uint64(valid) * (_SETTLED if squeezed else _LOG_TEST)
+        if reset == MODULO:
+            h0 = np.ceil(lead + e)
+            limit = _LIMIT_OF[np.uint64(min(h0, top))]  # (read unconditionally: it vectorises)
+            limit = limit if h0 <= top else -np.inf
+            # the next float above −g (g > 0 where it matters): w ≥ it ⇔ w + g > 0
+            rl[i] = max(-limit, _bits_f64(_f64_bits(-g) - _U1))
+        else:
+            rl[i] = -np.inf
+        ok[i] = np.uint64((hd > SMALL_SHAPE) & (hd <= top) & (not x_tail) & (not z_tail)
+                          & squeeze_accepts(u, x * x, c, t))
+
+
+@njit(inline="always", **_opts)
+def apply_cached(wait, g, wmin, e, reset):
+    """``(new wait, valid)`` of a firing whose cycle's draw ``g`` and lowest
+    wait ``wmin`` the cache holds (:func:`prepare_fast`), ``wait`` ≤ 0 the
+    wait at the firing: :func:`fire_cycle`'s result where ``valid`` (modulo:
+    no drop can happen and the next crossing lies beyond this readout; else
+    :func:`fire_cycle` decides).  :func:`spikesim._simd.event_cached_run64`
+    does the same on vectors."""
+    valid = wait >= wmin
+    if reset == ZERO:
+        return g, valid
+    return max(wait + g, -BACKLOG_MAX * e), valid
+
+
+@njit(inline="always", **_opts)
+def event_cache_clear(wf, wu, lanes):
+    """Empty the block's cache at the start of its chunk: its first ``lanes``
+    lanes stale, the padding lanes beyond the row (which never fire) fresh, so
+    that no refill draws for them."""
+    wmin = wf[WMIN]
+    for lane in range(BLOCK):
+        wmin[lane] = np.inf
+    wu[MASKS, FRESH] = ~np.uint64(0) if lanes <= 0 else (
+        np.uint64(0) if lanes >= BLOCK else ~((_U1 << np.uint64(lanes)) - _U1))
+
+
+@njit(inline="always", **_opts)
+def event_sync(used, ev, wf, wu):
+    """Finish the firings :func:`spikesim._simd.event_cached_run64` took from
+    the cache (lanes ``used``; it set their waits and spent their ``WMIN``):
+    next need, next cycle (:func:`spikesim._simd.advance_cycles64`), stale."""
+    if used != 0:
+        advance_cycles64(used, ev[NEED], wf[DNEXT], ev[CYCLE])
+        wu[MASKS, FRESH] &= ~used
+
+
+@njit(**_inner)
+def event_refill(must, electrons, ev, reset, jitter, wf, wu):
+    """Fill the cache of the stale lanes ``must`` and of as many other stale
+    lanes as make whole vectors (at least those ``must`` rounded up to
+    :data:`FAST_GROUP`, at most every stale lane rounded down): their indices
+    are listed, :func:`prepare_fast` draws them, and the results go back by lane.
+    A lane's draw depends only on its state, so drawing it early changes no bit."""
+    stale = ~wu[MASKS, FRESH]
+    n_stale = np.int64(popcount(stale))
+    want = max((np.int64(popcount(must)) + FAST_GROUP - 1) // FAST_GROUP * FAST_GROUP,
+               n_stale // FAST_GROUP * FAST_GROUP)
+    count = _list_lanes(must, BLOCK, ev, electrons, wf, wu, 0)
+    count = _list_lanes(stale & ~must, want, ev, electrons, wf, wu, count)
+    full = (count + FAST_GROUP - 1) // FAST_GROUP * FAST_GROUP
+    for i in range(count, full):  # whole vectors: harmless padding lanes
+        wf[CN, i] = 1000.0
+        wf[CC, i] = 0.0
+        wf[CE, i] = 1000.0
+    prepare_fast(full, reset, jitter, wf, wu)
+    fresh = wu[MASKS, FRESH]
+    for i in range(count):
+        lane = wu[CI, i]
+        wf[GNEXT, lane] = wf[RG, i]
+        wf[DNEXT, lane] = wf[RD, i]
+        wf[WMIN, lane] = wf[RL, i] if wu[OK, i] != 0 else np.inf
+        fresh |= _U1 << lane
+    wu[MASKS, FRESH] = fresh
+
+
+@njit(inline="always", **_opts)
+def _list_lanes(mask, stop, ev, electrons, wf, wu, count):
+    """Compact the lanes of ``mask``, lowest first, into the work rows from
+    position ``count`` up to ``stop`` (their need, cycle, electrons, keys and
+    lane index); returns the new count."""
+    m = mask
+    while m != 0 and count < stop:
+        lane = lowest_bit_index(m)
+        m &= m - _U1
+        wu[CI, count] = lane
+        wf[CN, count] = ev[NEED, lane]
+        wf[CC, count] = ev[CYCLE, lane]
+        wf[CE, count] = electrons[lane]
+        wu[CKW, count] = wu[LKW, lane]
+        wu[CKJ, count] = wu[LKJ, lane]
+        count += 1
+    return count
+
+
+@njit(inline="always", **_opts)
+def event_settle(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu):
+    """End the cycle of every lane of ``mask`` (non-zero) after a readout, the
+    waits at the firing in ``ev``: stale lanes get their cache filled
+    (:func:`event_refill`), a ready lane takes its draw where
+    :func:`apply_cached` allows, :func:`fire_cycle` does the rest; their cache
+    is spent."""
+    if mask & ~wu[MASKS, FRESH] != 0:
+        event_refill(mask & ~wu[MASKS, FRESH], electrons, ev, reset, jitter, wf, wu)
+    wait = ev[WAIT]
+    m = mask
+    while m != 0:
+        lane = lowest_bit_index(m)
+        m &= m - _U1
+        nw, valid = apply_cached(wait[lane], wf[GNEXT, lane], wf[WMIN, lane],
+                                 electrons[lane], reset)  # (never valid unless ready)
+        if valid:
+            wait[lane] = nw
+            ev[NEED, lane] = wf[DNEXT, lane]
+            ev[CYCLE, lane] += 1.0
+        else:
+            _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu)
+        wf[WMIN, lane] = np.inf
+    wu[MASKS, FRESH] &= ~mask
 
 
 @njit(inline="always", **_opts)
@@ -369,10 +556,10 @@ def event_step(level, gain, offset, electrons, ev, reset, jitter, loss, keys, pi
     ``ev`` (4, 64) the block's state (rows :data:`WAIT`, :data:`NEED`,
     :data:`CYCLE`, :data:`AFTER_RESET`), updated in place; ``keys`` the
     stream keys (wait, residual, refill, jitter); ``wf``, ``wu`` the work
-    arrays of :func:`event_fire`.  The loop over every lane is branch-free, so
-    it vectorises.  Padding lanes have zero gain and offset, so they never
-    fire.  (Runs without charge loss take
-    :func:`spikesim._simd.event_wait_run64` instead, the same arithmetic.)"""
+    arrays and cache (:func:`event_settle`).  The loop over every lane is
+    branch-free, so it vectorises.  Padding lanes have zero gain and offset,
+    so they never fire.  (Runs without charge loss take
+    :func:`spikesim._simd.event_cached_run64` instead, the same arithmetic.)"""
     wait = ev[WAIT]
     after = ev[AFTER_RESET]
     mask = np.uint64(0)
@@ -386,58 +573,8 @@ def event_step(level, gain, offset, electrons, ev, reset, jitter, loss, keys, pi
         for lane in range(BLOCK):
             after[lane] = np.float64((mask >> np.uint64(lane)) & _U1)
     if mask != 0:
-        event_fire(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu)
+        event_settle(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu)
     return mask
-
-
-@njit(inline="always", **_opts)
-def event_fire(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu):
-    """End the cycle of every lane of ``mask`` (non-zero) after a readout: the
-    lanes are compacted into the work arrays ``wf``, ``wu`` (:data:`EV_WORK_F`,
-    :data:`EV_WORK_U` rows of 64, whose rows :data:`LKW`, :data:`LKJ` hold the
-    block's lane keys, :func:`event_lane_keys`), :func:`fire_fast` settles most
-    of them on whole vectors, and :func:`fire_cycle` the rest."""
-    wait = ev[WAIT]
-    if popcount(mask) <= SCALAR_FIRES:  # too few for a vector step to pay
-        m = mask
-        while m != 0:
-            lane = lowest_bit_index(m)
-            m &= m - _U1
-            _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu)
-        return
-    count = 0
-    m = mask
-    while m != 0:  # compact the lanes that fired, lowest first
-        lane = lowest_bit_index(m)
-        m &= m - _U1
-        wu[CI, count] = lane
-        wf[CW, count] = wait[lane]
-        wf[CN, count] = ev[NEED, lane]
-        wf[CC, count] = ev[CYCLE, lane]
-        wf[CE, count] = electrons[lane]
-        wu[CKW, count] = wu[LKW, lane]
-        wu[CKJ, count] = wu[LKJ, lane]
-        count += 1
-    group = FAST_GROUP if reset == MODULO else FAST_GROUP_SMALL_LOOP
-    full = (count + group - 1) // group * group
-    for i in range(count, full):  # whole vectors: harmless padding lanes
-        wf[CW, i] = -1.0
-        wf[CN, i] = 1000.0
-        wf[CC, i] = 0.0
-        wf[CE, i] = 1000.0
-    fire_fast(full, reset, jitter, wf, wu)
-    for i in range(count):
-        lane = wu[CI, i]
-        outcome = wu[OK, i]
-        if outcome == _LOG_TEST and log_test_accepts(wf[RU, i], wf[RX2, i], wf[RV, i],
-                                                     wf[RDD, i]):
-            outcome = _SETTLED
-        if outcome == _SETTLED:
-            wait[lane] = wf[RW, i]
-            ev[NEED, lane] = wf[RD, i]
-            ev[CYCLE, lane] = wf[CC, i] + 1.0
-        else:
-            _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu)
 
 
 @njit(inline="always", **_opts)

@@ -31,8 +31,9 @@ Model (docs/model.md; Dong et al., AAAI 2024, eq. 1):
   noise): per pixel and firing cycle the readout of the next threshold
   crossing is drawn as an Erlang waiting time in operational time
   ``Λ = Σ E·q_n`` (draws keyed by (stream, pixel, cycle)); per readout the
-  block only subtracts ``E·q_n`` from each lane's wait, so the work is per
-  spike.  Its state is the float64 ``aux`` array, not the fixed point.
+  block only subtracts ``E·q_n`` from each lane's wait and takes the firing
+  lanes' next waits from a per-lane cache of draws made ahead, so the work is
+  per spike.  Its state is the float64 ``aux`` array, not the fixed point.
 * Charge loss at reset: the readout after a firing collects ``(1 − f)·q_n``.
 
 Work is split in blocks of 64 pixels of one row (8 packed bytes) run in
@@ -55,11 +56,16 @@ from numba import njit, prange
 
 from spikesim._event import (
     AFTER_RESET,
+    BACKLOG_MAX,
     EV_WORK_F,
     EV_WORK_U,
-    event_fire,
+    GNEXT,
+    WMIN,
+    event_cache_clear,
     event_lane_keys,
+    event_settle,
     event_step,
+    event_sync,
     init_event_block,
 )
 from spikesim._event import WAIT as EV_WAIT
@@ -67,7 +73,10 @@ from spikesim._poisson import LAMBDA_MAX, _shot_noise_block
 from spikesim._simd import (
     carry_run64,
     carry_run64_zero,
-    event_wait_run64,
+    event_cached_run64,
+    event_cached_run64_static,
+    event_cached_run64_zero,
+    event_cached_run64_zero_static,
     linear_carry_run64,
     linear_carry_run64_zero,
     paper_carry_add64,
@@ -485,6 +494,7 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     after = ev[AFTER_RESET]
     if model.event:
         pix0 = np.uint64(y * width + x0)
+        event_cache_clear(ev_f, ev_u, width - x0)
         for r in range(runs.kind.shape[0]):
             n0 = runs.start[r]
             n1 = runs.stop[r]
@@ -498,19 +508,18 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
             t_a = runs.ta[r]
             inv = runs.inv[r]
             _segment_radiance(frames, runs.a[r], runs.b[r], y, x0, ia, di)
-            if model.loss == 0.0:  # the waits stay in registers until a lane fires
+            if model.loss == 0.0:  # waits in registers, firings from the cache
+                moving = 0
+                for lane in range(BLOCK):
+                    moving += 0 if di[lane] == 0.0 else 1
                 n = n0
                 while n < n1:
-                    first, stride, nbytes = _word_at(out, n - t_off, y, blk)
-                    k, mask = event_wait_run64(ev[EV_WAIT], ia, di, gain, offset, electrons, n,
-                                               t_a, inv, LAMBDA_MAX, out, first, stride, nbytes,
-                                               n1 - n)
+                    k, bad = _event_run(ev, ia, di, gain, offset, electrons, ev_f, ev_u, n,
+                                        t_a, inv, out, t_off, y, blk, n1 - n, zero, moving == 0)
                     n += np.int64(k)
-                    if n < n1:
-                        event_fire(mask, electrons, ev, reset, model.jitter, model.ev_keys,
-                                   pix0, ev_f, ev_u)
-                        _put(out, n - t_off, y, blk, mask)
-                        n += 1
+                    if bad != 0:
+                        event_settle(bad, electrons, ev, reset, model.jitter, model.ev_keys,
+                                     pix0, ev_f, ev_u)
                 continue
             for n in range(n0, n1):
                 phi = (np.float64(n) + 0.5 - t_a) * inv
@@ -582,6 +591,36 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                 _put(out, n - t_off, y, blk, _general_step(
                     n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width,
                     model, zbuf, bbuf, pkeys, shot_work, after))
+
+
+@njit(inline="always", **_opts)
+def _event_run(ev, ia, di, gain, offset, electrons, ev_f, ev_u, n, t_a, inv, out, t_off, y, blk,
+               count, zero, static):
+    """Up to ``count`` readouts from ``n`` of a linear segment (``static``: of
+    constant radiance), event sampler without charge loss
+    (:func:`spikesim._simd.event_cached_run64` and its variants), the
+    firings it took from the cache finished (:func:`spikesim._event.event_sync`);
+    returns ``(k, bad)`` as it does."""
+    first, stride, nbytes = _word_at(out, n - t_off, y, blk)
+    g, lo = ev_f[GNEXT], ev_f[WMIN]
+    if zero and static:
+        k, bad, used = event_cached_run64_zero_static(
+            ev[EV_WAIT], ia, di, gain, offset, electrons, g, lo, n, t_a, inv, LAMBDA_MAX,
+            -BACKLOG_MAX, out, first, stride, nbytes, count)
+    elif zero:
+        k, bad, used = event_cached_run64_zero(
+            ev[EV_WAIT], ia, di, gain, offset, electrons, g, lo, n, t_a, inv, LAMBDA_MAX,
+            -BACKLOG_MAX, out, first, stride, nbytes, count)
+    elif static:
+        k, bad, used = event_cached_run64_static(
+            ev[EV_WAIT], ia, di, gain, offset, electrons, g, lo, n, t_a, inv, LAMBDA_MAX,
+            -BACKLOG_MAX, out, first, stride, nbytes, count)
+    else:
+        k, bad, used = event_cached_run64(
+            ev[EV_WAIT], ia, di, gain, offset, electrons, g, lo, n, t_a, inv, LAMBDA_MAX,
+            -BACKLOG_MAX, out, first, stride, nbytes, count)
+    event_sync(used, ev, ev_f, ev_u)
+    return k, bad
 
 
 @njit(inline="always", **_opts)

@@ -328,8 +328,9 @@ def prefer_wide_vectors(typingctx):
     clock drop some older parts showed, and with it the cost model left loops
     of hashes and table gathers scalar: on this project's host the block's
     normal deviates (:func:`spikesim.rng.normals_into`) took 158 ns per 64
-    lanes instead of 79, and :func:`spikesim._event.fire_fast`'s body measured
-    1.5× faster with 512-bit vectors.  The attribute is ignored where the CPU
+    lanes instead of 79, and the per-spike draws' loop
+    (:func:`spikesim._event.prepare_fast`) measured 1.5× faster with 512-bit
+    vectors.  The attribute is ignored where the CPU
     has no wider vectors.  The function is also marked ``noinline``: an
     inlined copy would be optimised under its caller's attributes.  llvmlite
     only lets a fixed list of attribute names be added, so the string
@@ -344,77 +345,144 @@ def prefer_wide_vectors(typingctx):
     return types.void(), codegen
 
 
-@intrinsic
-def event_wait_run64(typingctx, wait, level, slope, gain, offset, electrons, n0, t_a, inv, lam_max,
-                     out, first, stride, nbytes, count):
-    """Up to ``count`` readouts of the event-driven shot-noise model
+def _event_cached_run(zero_reset, static):
+    @intrinsic
+    def event_cached_run(typingctx, wait, level, slope, gain, offset, electrons, gnext, wmin,
+                         n0, t_a, inv, lam_max, backlog, out, first, stride, nbytes, count):
+        arrays = (wait, level, slope, gain, offset, electrons, gnext, wmin)
+        if not (all(_is_f64_array(a) for a in arrays) and isinstance(n0, types.Integer)
+                and all(isinstance(x, types.Float) for x in (t_a, inv, lam_max, backlog))
+                and _is_bytes(out) and _all_int(first, stride, nbytes, count)):
+            return None
+        result = types.UniTuple(types.uint64, 3)
+
+        def codegen(context, builder, sig, args):
+            i64 = ir.IntType(64)
+            fvec = ir.VectorType(ir.DoubleType(), LANES)
+            zero = i64(0)
+            wait_ptr = _lanes_ptr(context, builder, sig, args, 0, zero, fvec)
+            a, d, g, o, e, gn = (
+                builder.load(_lanes_ptr(context, builder, sig, args, k, zero, fvec), align=8)
+                for k in (1, 2, 3, 4, 5, 6))
+            lo_ptr = _lanes_ptr(context, builder, sig, args, 7, zero, fvec)
+            n_first = context.cast(builder, args[8], sig.args[8], types.int64)
+            t_a_, inv_, lam_max_, backlog_ = (
+                context.cast(builder, args[k], sig.args[k], types.float64) for k in (9, 10, 11, 12))
+            data, first_, stride_, nbytes_ = _out_bytes(context, builder, sig, args, 13)
+            count_ = context.cast(builder, args[17], sig.args[17], types.int64)
+            cap = _splat(builder, fvec, lam_max_)
+            floor = builder.fmul(_splat(builder, fvec, backlog_), e)  # −BACKLOG_MAX·E
+            fzero = ir.Constant(fvec, [0.0] * LANES)
+            spent = ir.Constant(fvec, [float("inf")] * LANES)
+            half = ir.Constant(ir.DoubleType(), 0.5)
+
+            def electrons_at(k):
+                # phi = (float(n) + 0.5 - t_a) * inv, λ = min((g·(a + d·phi) + o)·E, cap):
+                # the scalar step's operations in its order (no contraction)
+                n = builder.sitofp(builder.add(n_first, k), ir.DoubleType())
+                phi = builder.fmul(builder.fsub(builder.fadd(n, half), t_a_), inv_)
+                level_now = builder.fadd(a, builder.fmul(d, _splat(builder, fvec, phi)))
+                qe = builder.fmul(builder.fadd(builder.fmul(g, level_now), o), e)
+                return builder.select(builder.fcmp_ordered("<", cap, qe), cap, qe)
+
+            lam_static = electrons_at(zero) if static else None
+            k_slot = cgutils.alloca_once_value(builder, zero)
+            bad_slot = cgutils.alloca_once_value(builder, zero)
+            used_slot = cgutils.alloca_once_value(builder, zero)
+            w_slot = cgutils.alloca_once(builder, fvec)
+            builder.store(builder.load(wait_ptr, align=8), w_slot)
+            lo_slot = cgutils.alloca_once(builder, fvec)
+            builder.store(builder.load(lo_ptr, align=8), lo_slot)
+            loop = builder.append_basic_block("event_run.loop")
+            body = builder.append_basic_block("event_run.body")
+            done = builder.append_basic_block("event_run.done")
+            builder.branch(loop)
+            builder.position_at_end(loop)
+            k = builder.load(k_slot)
+            builder.cbranch(builder.icmp_signed("<", k, count_), body, done)
+            builder.position_at_end(body)
+            lam = lam_static if static else electrons_at(k)
+            w = builder.fsub(builder.load(w_slot), lam)
+            fired = builder.fcmp_ordered("<=", w, fzero)
+            used = builder.load(used_slot)
+            lo = builder.load(lo_slot)
+            take = builder.and_(fired, builder.fcmp_ordered(">=", w, lo))  # lo = +∞: not ready
+            builder.store(builder.select(take, spent, lo), lo_slot)
+            if zero_reset:
+                new_w = gn
+            else:
+                new_w = builder.fadd(w, gn)
+                new_w = builder.select(builder.fcmp_ordered("<", new_w, floor), floor, new_w)
+            builder.store(builder.select(take, new_w, w), w_slot)
+            builder.store(builder.or_(used, builder.bitcast(take, i64)), used_slot)
+            word = builder.bitcast(fired, i64)
+            _store_word(builder, data, builder.add(first_, builder.mul(k, stride_)), word,
+                        nbytes_)
+            builder.store(builder.add(k, i64(1)), k_slot)
+            bad = builder.xor(word, builder.bitcast(take, i64))  # fired, not taken
+            builder.store(bad, bad_slot)
+            builder.cbranch(builder.icmp_unsigned("!=", bad, zero), done, loop)
+            builder.position_at_end(done)
+            builder.store(builder.load(w_slot), wait_ptr, align=8)
+            builder.store(builder.load(lo_slot), lo_ptr, align=8)
+            return context.make_tuple(builder, result, [
+                builder.load(k_slot), builder.load(bad_slot), builder.load(used_slot)])
+
+        return (result(wait, level, slope, gain, offset, electrons, gnext, wmin, n0, t_a, inv,
+                       lam_max, backlog, out, first, stride, nbytes, count), codegen)
+
+    return event_cached_run
+
+
+event_cached_run64 = _event_cached_run(False, False)
+event_cached_run64.__doc__ = """Up to ``count`` readouts of the event-driven shot-noise model
     (:mod:`spikesim._event`) for a 64-lane block, without charge loss, the
-    waits held in registers, until a lane fires.
+    waits held in registers, its firings taken from the block's cache of drawn
+    cycles while it can (modulo or subtract reset).
 
     Readout ``k`` (clock index ``n = n0 + k``, ``phi = (n + ½ − t_a)·inv``)
     takes lane ``j``'s ``λ = min((gain·(level + slope·phi) + offset)·E, lam_max)``
     electrons (float64, in exactly this order: the scalar step's value) off its
-    ``wait``; a lane fires where the wait is ≤ 0.  Readouts where no lane
-    fires store a zero word as :func:`store_word` does (at byte ``first +
-    k·stride`` of ``out``).  Returns ``(k, mask)``: the readout index ``k`` of
-    the first firing, its waits stored and its word *not* written, and its 64
-    firing bits; ``(count, 0)`` when none fired."""
-    arrays = (wait, level, slope, gain, offset, electrons)
-    if not (all(_is_f64_array(a) for a in arrays) and isinstance(n0, types.Integer)
-            and all(isinstance(x, types.Float) for x in (t_a, inv, lam_max))
-            and _is_bytes(out) and _all_int(first, stride, nbytes, count)):
+    ``wait``; a lane fires where the wait is ≤ 0, and every readout's firing
+    bits are stored as :func:`store_word` does (at byte ``first + k·stride``
+    of ``out``).  A lane that fires at a wait ≥ its ``wmin`` (+∞: no draw
+    cached) takes its cached draw, ``max(wait + gnext, backlog·E)``
+    (``backlog`` = −2⁶²; the operations of
+    :func:`spikesim._event.apply_cached`), and its ``wmin`` becomes +∞.
+
+    The call ends after the first readout with a firing lane that could not
+    take its draw, or after ``count`` readouts.  Returns ``(k, bad, used)``:
+    the number of readouts done, the lanes of the last one still to settle
+    (their waits are those at the firing; 0 when none), and the lanes that
+    took their draw (once each at most), whose need and cycle the caller then
+    advances (:func:`spikesim._event.event_sync`)."""
+#: The same for zero reset (a lane takes ``gnext`` itself), and for runs of
+#: constant radiance (``slope`` not read: ``λ`` computed once).
+event_cached_run64_zero = _event_cached_run(True, False)
+event_cached_run64_static = _event_cached_run(False, True)
+event_cached_run64_zero_static = _event_cached_run(True, True)
+
+
+@intrinsic
+def advance_cycles64(typingctx, mask, need, dnext, cycle):
+    """For the lanes of ``mask`` (lane ``k`` ↔ bit ``k``): ``need = dnext``,
+    ``cycle += 1`` (64 contiguous float64 lanes each, updated in place): the
+    next cycle of the firings :func:`event_cached_run64` took from the cache,
+    as masked vector moves."""
+    if not (mask == types.uint64 and all(_is_f64_array(a) for a in (need, dnext, cycle))):
         return None
-    result = types.UniTuple(types.uint64, 2)
 
     def codegen(context, builder, sig, args):
-        i64 = ir.IntType(64)
         fvec = ir.VectorType(ir.DoubleType(), LANES)
-        zero = i64(0)
-        wait_ptr = _lanes_ptr(context, builder, sig, args, 0, zero, fvec)
-        a, d, g, o, e = (builder.load(_lanes_ptr(context, builder, sig, args, k, zero, fvec),
-                                      align=8) for k in (1, 2, 3, 4, 5))
-        n_first = context.cast(builder, args[6], sig.args[6], types.int64)
-        t_a_, inv_, lam_max_ = (context.cast(builder, args[k], sig.args[k], types.float64)
-                                for k in (7, 8, 9))
-        data, first_, stride_, nbytes_ = _out_bytes(context, builder, sig, args, 10)
-        count_ = context.cast(builder, args[14], sig.args[14], types.int64)
-        cap = _splat(builder, fvec, lam_max_)
-        fzero = ir.Constant(fvec, [0.0] * LANES)
-        half = ir.Constant(ir.DoubleType(), 0.5)
-        k_slot = cgutils.alloca_once_value(builder, zero)
-        mask_slot = cgutils.alloca_once_value(builder, zero)
-        w_slot = cgutils.alloca_once(builder, fvec)
-        builder.store(builder.load(wait_ptr, align=8), w_slot)
-        loop = builder.append_basic_block("event_run.loop")
-        body = builder.append_basic_block("event_run.body")
-        done = builder.append_basic_block("event_run.done")
-        builder.branch(loop)
-        builder.position_at_end(loop)
-        k = builder.load(k_slot)
-        builder.cbranch(builder.icmp_signed("<", k, count_), body, done)
-        builder.position_at_end(body)
-        n = builder.sitofp(builder.add(n_first, k), ir.DoubleType())
-        phi = builder.fmul(builder.fsub(builder.fadd(n, half), t_a_), inv_)
-        level_now = builder.fadd(a, builder.fmul(d, _splat(builder, fvec, phi)))
-        q = builder.fadd(builder.fmul(g, level_now), o)
-        qe = builder.fmul(q, e)
-        lam = builder.select(builder.fcmp_ordered("<", cap, qe), cap, qe)
-        w = builder.fsub(builder.load(w_slot), lam)
-        builder.store(w, w_slot)
-        word = builder.bitcast(builder.fcmp_ordered("<=", w, fzero), i64)
-        fired = builder.icmp_unsigned("!=", word, zero)
-        with builder.if_else(fired, likely=False) as (then, otherwise):
-            with then:
-                builder.store(word, mask_slot)
-            with otherwise:
-                _store_word(builder, data, builder.add(first_, builder.mul(k, stride_)), word,
-                            nbytes_)
-                builder.store(builder.add(k, i64(1)), k_slot)
-        builder.cbranch(fired, done, loop)
-        builder.position_at_end(done)
-        builder.store(builder.load(w_slot), wait_ptr, align=8)
-        return context.make_tuple(builder, result, [builder.load(k_slot),
-                                                    builder.load(mask_slot)])
+        zero = ir.IntType(64)(0)
+        m = builder.bitcast(args[0], ir.VectorType(ir.IntType(1), LANES))
+        need_p, dnext_p, cycle_p = (_lanes_ptr(context, builder, sig, args, k, zero, fvec)
+                                    for k in (1, 2, 3))
+        builder.store(builder.select(m, builder.load(dnext_p, align=8),
+                                     builder.load(need_p, align=8)), need_p, align=8)
+        c = builder.load(cycle_p, align=8)
+        builder.store(builder.select(m, builder.fadd(c, ir.Constant(fvec, [1.0] * LANES)), c),
+                      cycle_p, align=8)
+        return context.get_dummy_value()
 
-    return (result(wait, level, slope, gain, offset, electrons, n0, t_a, inv, lam_max, out, first,
-                   stride, nbytes, count), codegen)
+    return types.void(mask, need, dnext, cycle), codegen

@@ -99,8 +99,8 @@ def gamma_ref(m: float, bits: int) -> float:
             continue
         v = t * t * t
         x2 = x * x
-        if u < 1.0 - 0.0331 * x2 * x2:
-            return d * v
+        if t >= 0.5 and u < 1.0 - (4.0 / 3.0) * (c * c) * (x2 * x2):
+            return d * v  # ln u ≤ u − 1 < −(4/3)c²x⁴ ≤ the log test's right side
         if _log(u) < 0.5 * x2 + d * (1.0 - v + _log(v)):
             return d * v
 

@@ -71,50 +71,97 @@ def test_negligible_drop_rule_keeps_below_two_to_the_minus_64():
     assert not _event.drop_negligible(1000.0, 1000.0) and not _event.drop_negligible(2e3, 1e3)
 
 
-def _fired_lanes(rng, n, e, bright):
-    """Work arrays of ``n`` compacted fired lanes: waits just below 0 (down to
-    ``−bright·e``, the electrons of a readout), needs near ``e``, cycles."""
+def test_drop_free_limit_implies_the_rule_and_the_tables_hold_it_and_c():
+    """Every ``left`` ≤ :func:`drop_free_limit` passes :func:`drop_negligible`
+    (0.70 threshold per readout at 1000 e⁻); the shape tables hold that limit
+    and Marsaglia–Tsang's ``c`` bit for bit."""
+    for h0 in (1.0, 2.0, 54.0, 89.0, 230.0, 1000.0, 1001.0, 5000.0, 1e5, 1e12, 2.0**52):
+        limit = _event.drop_free_limit(h0)
+        if limit < 0:
+            continue
+        for left in (0.0, 0.3 * limit, limit, np.nextafter(limit, -np.inf)):
+            assert _event.drop_negligible(left, h0), (h0, left)
+    assert 0.70 < _event.drop_free_limit(1000.0) / 1000.0 < 0.71
+    assert _event.drop_free_limit(0.5) == -np.inf and _event.drop_free_limit(2.0**53) == -np.inf
+    tables = _event.SHAPE_TABLES
+    h = np.arange(tables.shape[1], dtype=np.float64)
+    assert tables.shape[1] == _event.TABLE_SHAPES
+    want_c = 1.0 / np.sqrt(9.0 * (h[9:] - 1.0 / 3.0))
+    np.testing.assert_array_equal(tables[0, 9:], want_c)
+    np.testing.assert_array_equal(tables[1, 1:], [_event.drop_free_limit(x) for x in h[1:]])
+
+
+def test_squeeze_accepts_only_what_the_log_test_accepts():
+    """The squeeze's bound, ``½x² + d(1 − v + ln v) ≥ −(4/3)c²x⁴`` where
+    ``1 + c·x ≥ ½``, checked in 50-digit arithmetic over shapes and deviates;
+    and it leaves about ``4c²`` of the candidates to the log test."""
+    mp = pytest.importorskip("mpmath")
+    mp.mp.dps = 50
+    rng = np.random.default_rng(4)
+    for m in (9.0, 10.0, 30.0, 1000.0, 1e6):
+        d = mp.mpf(m) - mp.mpf(1) / 3
+        c = 1 / mp.sqrt(9 * d)
+        for x in rng.uniform(-8.0, 8.0, 300):
+            t = 1 + c * mp.mpf(x)
+            if t < 0.5:
+                continue
+            v = t**3
+            exact = mp.mpf(x) ** 2 / 2 + d * (1 - v + mp.log(v))
+            assert exact >= -mp.mpf(4) / 3 * c**2 * mp.mpf(x) ** 4, (m, x)
+    x = rng.standard_normal(200_000)
+    u = rng.random(200_000)
+    c = 1.0 / np.sqrt(9.0 * (1000.0 - 1.0 / 3.0))
+    left = ~_squeeze(u, x * x, c, 1.0 + c * x)
+    assert abs(left.mean() - 4 * c * c) < 5 * np.sqrt(4 * c * c / x.size)
+
+
+def _squeeze(u, x2, c, t):
+    return np.array([_event.squeeze_accepts(a, b, c, s) for a, b, s in zip(u, x2, t, strict=True)])
+
+
+def _lanes(rng, n, e, bright):
+    """Work arrays of ``n`` compacted lanes (needs near ``e``, cycles, keys) and
+    their waits at a firing, just below 0 (down to ``−bright·e``, the
+    electrons of a readout)."""
     wf = np.zeros((_event.EV_WORK_F, n))
     wu = np.zeros((_event.EV_WORK_U, n), np.uint64)
-    wf[_event.CW] = -rng.random(n) * bright * e
     wf[_event.CN] = e * (0.5 + rng.random(n))
     wf[_event.CC] = rng.integers(0, 5000, n).astype(np.float64)
     wf[_event.CE] = e * (1.0 + 0.05 * rng.standard_normal(n))
     wu[_event.CKW] = rng.integers(0, 2**63, n, dtype=np.uint64) * np.uint64(2) + np.uint64(1)
     wu[_event.CKJ] = rng.integers(0, 2**63, n, dtype=np.uint64) * np.uint64(2)
-    return wf, wu
+    return wf, wu, -rng.random(n) * bright * e
 
 
 @pytest.mark.parametrize("reset", [0, 1, 2])
 @pytest.mark.parametrize("e, bright, jitter", [(1000.0, 0.5, 0.006), (1000.0, 1.5, 0.0),
                                                 (40.0, 0.9, 0.1), (5.0, 0.5, 0.2)])
-def test_vector_fire_step_equals_the_scalar_cycle_where_it_settles(reset, e, bright, jitter):
-    """:func:`fire_fast` (whole vectors) gives :func:`fire_cycle`'s bits for every
-    lane it settles (directly or after the log test), leaves the rest to it,
-    and settles ≥ 97 % of the spikes at the default 1000 e⁻ per threshold."""
+def test_prepared_draw_gives_the_scalar_cycle_where_it_applies(reset, e, bright, jitter):
+    """:func:`prepare_fast` (whole vectors, ahead of the firing) then
+    :func:`apply_cached` at the firing give :func:`fire_cycle`'s bits for
+    every lane where they apply, and apply to ≥ 97 % of the spikes at the
+    default 1000 e⁻ per threshold."""
     rng = np.random.default_rng(reset * 31 + int(e))
     n = 4096
-    wf, wu = _fired_lanes(rng, n, e, bright)
-    _event.fire_fast(n, reset, jitter, wf, wu)
-    settled = 0
+    wf, wu, waits = _lanes(rng, n, e, bright)
+    _event.prepare_fast(n, reset, jitter, wf, wu)
+    applied = 0
     for i in range(n):
-        outcome = wu[_event.OK, i]
-        want = _event.fire_cycle(wf[_event.CW, i], wf[_event.CN, i], wf[_event.CC, i],
+        want = _event.fire_cycle(waits[i], wf[_event.CN, i], wf[_event.CC, i],
                                  wf[_event.CE, i], reset, jitter, wu[_event.CKW, i],
                                  wu[_event.CKJ, i], np.uint64(5), np.uint64(6), np.uint64(i))
-        if outcome == _event.LOG_TEST:
-            if _event.log_test_accepts(*(wf[r, i] for r in (_event.RU, _event.RX2, _event.RV,
-                                                              _event.RDD))):
-                outcome = _event.SETTLED
-        if outcome == _event.SETTLED:
-            settled += 1
-            got = (wf[_event.RW, i], wf[_event.RD, i], wf[_event.CC, i] + 1.0)
+        wmin = wf[_event.RL, i] if wu[_event.OK, i] else np.inf
+        new_wait, valid = _event.apply_cached(waits[i], wf[_event.RG, i], wmin, wf[_event.CE, i],
+                                              reset)
+        if valid:
+            applied += 1
+            got = (new_wait, wf[_event.RD, i], wf[_event.CC, i] + 1.0)
             assert np.array(got).view(np.uint64).tolist() == (
                 np.array(want).view(np.uint64).tolist()), (i, got, want)
     if e >= 1000.0 and bright <= 0.5:
-        assert settled > 0.97 * n
+        assert applied > 0.97 * n
     if e <= 5.0:
-        assert settled < 0.01 * n  # shapes ≤ 8 (nearly all here): the scalar product of uniforms
+        assert applied < 0.01 * n  # shapes ≤ 8 (nearly all here): the scalar product of uniforms
 
 
 def test_reset_codes_and_backlog_limit_agree_with_the_kernel():

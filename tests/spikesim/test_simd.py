@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from numba import njit
 
 from spikesim._simd import (
+    advance_cycles64,
     carry_run64,
     carry_run64_zero,
-    event_wait_run64,
+    event_cached_run64,
+    event_cached_run64_static,
+    event_cached_run64_zero,
+    event_cached_run64_zero_static,
     high_bits_at_least64,
     linear_carry_run64,
     linear_carry_run64_zero,
@@ -70,9 +75,22 @@ def _popcount(m):
 
 
 @njit
-def _event_run(wait, a, d, g, o, e, n0, t_a, inv, cap, out, first, stride, nbytes, count):
-    return event_wait_run64(wait, a, d, g, o, e, n0, t_a, inv, cap, out, first, stride, nbytes,
-                            count)
+def _event_run(variant, wait, a, d, g, o, e, gn, lo, n0, t_a, inv, cap, floor, out, first,
+               stride, nbytes, count):
+    args = (wait, a, d, g, o, e, gn, lo, n0, t_a, inv, cap, floor, out, first, stride, nbytes,
+            count)
+    if variant == 0:
+        return event_cached_run64(*args)
+    if variant == 1:
+        return event_cached_run64_static(*args)
+    if variant == 2:
+        return event_cached_run64_zero(*args)
+    return event_cached_run64_zero_static(*args)
+
+
+@njit
+def _advance(mask, need, dnext, cycle):
+    advance_cycles64(mask, need, dnext, cycle)
 
 
 def _mask(bits):
@@ -213,35 +231,67 @@ def test_popcount_counts_the_set_bits():
         assert int(_popcount(np.uint64(m))) == bin(int(m)).count("1")
 
 
-def test_event_wait_run64_stops_at_the_first_firing_readout_like_the_scalar_step():
-    """Waits held in registers: each readout subtracts ``min((g·(a + d·phi) + o)·E,
-    cap)``; readouts with no firing store a zero word, the first firing readout
-    returns its index and mask (its word left to the caller), waits stored."""
-    rng = np.random.default_rng(8)
-    a, d = rng.random(64), 0.01 * rng.standard_normal(64)
+@pytest.mark.parametrize("variant", [0, 1, 2, 3])
+def test_event_cached_run64_equals_the_scalar_steps_and_stops_where_a_lane_cannot_take(variant):
+    """Waits in registers: each readout subtracts ``min((g·(a + d·phi) + o)·E,
+    cap)`` (static variants: ``d`` = 0); a firing lane whose wait is ≥ its
+    ``wmin`` takes ``max(wait + gnext, floor·E)`` (zero reset: ``gnext``) and
+    its ``wmin`` becomes +∞; every readout's firing word is stored; the call
+    ends after the first readout where a firing lane could not take, returning
+    the readouts done, those lanes and the lanes that took."""
+    zero, static = variant >= 2, variant % 2 == 1
+    rng = np.random.default_rng(8 + variant)
+    a, d = rng.random(64), (0.0 if static else 0.01) * rng.standard_normal(64)
     g, o, e = 1.0 + 0.1 * rng.random(64), np.full(64, 0.002), 900.0 + 200.0 * rng.random(64)
-    n0, t_a, inv, cap = 5, 3.25, 0.125, 2.0**62
-    for base, spread, count in ((3000.0, 100.0, 40), (50.0, 30.0, 40), (1e9, 1e9, 7),
-                                (50.0, 30.0, 0), (0.0, 0.0, 5)):
-        wait = base + spread * rng.random(64)
-        out = np.full(200, 0xAA, np.uint8)
-        got = wait.copy()
-        k, mask = _event_run(got, a, d, g, o, e, n0, t_a, inv, cap, out, 3, 9, 8, count)
-        w = wait.copy()
-        want_k, want_mask = count, 0
-        for j in range(count):  # the scalar step of spikesim._event.event_step, no charge loss
+    n0, t_a, inv, cap, floor = 5, 3.25, 0.125, 2.0**62, -(2.0**62)
+    for base, ready, count in ((3000.0, 1.0, 60), (3000.0, 0.9, 60), (50.0, 0.0, 40),
+                               (1e9, 1.0, 7), (50.0, 1.0, 0), (0.0, 1.0, 5)):
+        wait = base + 100.0 * rng.random(64)
+        gn = 900.0 + 300.0 * rng.random(64)
+        # ready lanes' lowest wait: within one readout's electrons (some firings
+        # fall below it), or below any (only a spent draw stops a lane)
+        top = -1200.0 if ready == 1.0 else -400.0
+        lo = np.where(rng.random(64) < ready, top - 600.0 * rng.random(64), np.inf)
+        out = np.full(9 * count + 20, 0xAA, np.uint8)
+        got_w, got_lo = wait.copy(), lo.copy()
+        k, bad, used = _event_run(variant, got_w, a, d, g, o, e, gn, got_lo, n0, t_a, inv, cap,
+                                  floor, out, 3, 9, 8, count)
+        w, lw, took = wait.copy(), lo.copy(), np.zeros(64, bool)
+        want_bad, words = 0, []
+        for j in range(count):  # the scalar steps
             phi = (np.float64(n0 + j) + 0.5 - t_a) * inv
-            lam = np.minimum((g * (a + d * phi) + o) * e, cap)
-            w = w - lam
-            if (w <= 0.0).any():
-                want_k, want_mask = j, _mask(w <= 0.0)
+            w = w - np.minimum((g * (a + d * phi) + o) * e, cap)
+            fired = w <= 0.0
+            take = fired & (w >= lw)
+            new = gn if zero else np.maximum(w + gn, floor * e)
+            w = np.where(take, new, w)
+            lw = np.where(take, np.inf, lw)
+            took |= take
+            words.append(_mask(fired))
+            if (fired & ~take).any():
+                want_bad = _mask(fired & ~take)
                 break
-        assert (int(k), int(mask)) == (want_k, want_mask)
-        assert base != 3000.0 or 2 <= want_k < count  # a firing inside the run
-        np.testing.assert_array_equal(got.view(np.uint64), w.view(np.uint64))
-        words = [out[3 + 9 * j: 11 + 9 * j] for j in range(int(k))]
-        assert all((word == 0).all() for word in words)
-        assert (out[3 + 9 * int(k): 11 + 9 * int(k)] == 0xAA).all() or int(k) == count == 0
+        assert (int(k), int(bad), int(used)) == (len(words), want_bad, _mask(took))
+        np.testing.assert_array_equal(got_w.view(np.uint64), w.view(np.uint64))
+        np.testing.assert_array_equal(got_lo, lw)
+        for j, word in enumerate(words):
+            assert int.from_bytes(out[3 + 9 * j: 11 + 9 * j].tobytes(), "little") == word
+        assert (out[3 + 9 * len(words):] == 0xAA).all()
+        if base == 3000.0:  # firings inside the run, some taken
+            assert took.any() and want_bad != 0 and 2 < len(words) < count
+            if ready == 1.0:  # only a second firing (its draw spent) stops the run
+                assert want_bad & ~_mask(took) == 0
+
+
+def test_advance_cycles64_moves_need_and_counts_cycles_on_the_masked_lanes_only():
+    rng = np.random.default_rng(2)
+    need, dnext, cycle = rng.random(64), rng.random(64), rng.integers(0, 9, 64).astype(float)
+    mask = int(rng.integers(0, 2**63)) * 2 + 1
+    sel = np.array([(mask >> k) & 1 for k in range(64)], bool)
+    want_need, want_cycle = np.where(sel, dnext, need), cycle + sel
+    _advance(np.uint64(mask), need, dnext, cycle)
+    np.testing.assert_array_equal(need, want_need)
+    np.testing.assert_array_equal(cycle, want_cycle)
 
 
 def test_prefer_wide_vectors_marks_the_calling_function():
