@@ -137,31 +137,39 @@ def _lanes(rng, n, e, bright):
 @pytest.mark.parametrize("e, bright, jitter", [(1000.0, 0.5, 0.006), (1000.0, 1.5, 0.0),
                                                 (40.0, 0.9, 0.1), (5.0, 0.5, 0.2)])
 def test_prepared_draw_gives_the_scalar_cycle_where_it_applies(reset, e, bright, jitter):
-    """:func:`prepare_fast` (whole vectors, ahead of the firing) then
-    :func:`apply_cached` at the firing give :func:`fire_cycle`'s bits for
-    every lane where they apply, and apply to ≥ 97 % of the spikes at the
-    default 1000 e⁻ per threshold."""
+    """:func:`prepare_fast` (whole vectors, ahead of the firing), or
+    :func:`prepare_lane` for the lanes it leaves, then :func:`apply_cached` at
+    the firing give :func:`fire_cycle`'s bits for every lane where they apply;
+    the vectors take ≥ 97 % of the spikes at the default 1000 e⁻ per
+    threshold, and with the scalar lanes the cache holds every subtract and
+    zero firing and the modulo ones below the drop-free limit."""
     rng = np.random.default_rng(reset * 31 + int(e))
     n = 4096
     wf, wu, waits = _lanes(rng, n, e, bright)
     _event.prepare_fast(n, reset, jitter, wf, wu)
-    applied = 0
+    vector = applied = 0
     for i in range(n):
-        want = _event.fire_cycle(waits[i], wf[_event.CN, i], wf[_event.CC, i],
-                                 wf[_event.CE, i], reset, jitter, wu[_event.CKW, i],
+        state = (wf[_event.CN, i], wf[_event.CC, i], wf[_event.CE, i])
+        want = _event.fire_cycle(waits[i], *state, reset, jitter, wu[_event.CKW, i],
                                  wu[_event.CKJ, i], np.uint64(5), np.uint64(6), np.uint64(i))
-        wmin = wf[_event.RL, i] if wu[_event.OK, i] else np.inf
-        new_wait, valid = _event.apply_cached(waits[i], wf[_event.RG, i], wmin, wf[_event.CE, i],
-                                              reset)
+        if wu[_event.OK, i]:
+            vector += 1
+            g, d, wmin = wf[_event.RG, i], wf[_event.RD, i], wf[_event.RL, i]
+        else:
+            g, d, wmin = _event.prepare_lane(*state, reset, jitter, wu[_event.CKW, i],
+                                             wu[_event.CKJ, i])
+        new_wait, valid = _event.apply_cached(waits[i], g, wmin, state[2], reset)
         if valid:
             applied += 1
-            got = (new_wait, wf[_event.RD, i], wf[_event.CC, i] + 1.0)
+            got = (new_wait, d, state[1] + 1.0)
             assert np.array(got).view(np.uint64).tolist() == (
                 np.array(want).view(np.uint64).tolist()), (i, got, want)
+        else:
+            assert reset == 0  # only modulo firings beyond the limit go to fire_cycle
     if e >= 1000.0 and bright <= 0.5:
-        assert applied > 0.97 * n
+        assert vector > 0.97 * n and applied == n
     if e <= 5.0:
-        assert applied < 0.01 * n  # shapes ≤ 8 (nearly all here): the scalar product of uniforms
+        assert vector < 0.01 * n  # shapes ≤ 8 (nearly all here): the scalar product of uniforms
 
 
 def test_reset_codes_and_backlog_limit_agree_with_the_kernel():
