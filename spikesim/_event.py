@@ -501,7 +501,7 @@ def event_sync(used, ev, wf, wu):
         wu[MASKS, FRESH] &= ~used
 
 
-@njit(**_inner)
+@njit(inline="always", **_opts)
 def event_refill(must, electrons, ev, reset, jitter, wf, wu):
     """Fill the cache of the stale lanes ``must`` and of as many other stale
     lanes as make whole vectors (at least those ``must`` rounded up to
