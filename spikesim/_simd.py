@@ -457,7 +457,7 @@ event_cached_run64.__doc__ = """Up to ``count`` readouts of the event-driven sho
     took their draw (once each at most), whose need and cycle the caller then
     advances (:func:`spikesim._event.event_sync`)."""
 #: The same for zero reset (a lane takes ``gnext`` itself), and for runs of
-#: constant radiance (``slope`` not read: ``λ`` computed once).
+#: constant radiance (``slope`` all zero, the caller checks: ``λ`` computed once).
 event_cached_run64_zero = _event_cached_run(True, False)
 event_cached_run64_static = _event_cached_run(False, True)
 event_cached_run64_zero_static = _event_cached_run(True, True)
