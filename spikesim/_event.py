@@ -266,6 +266,33 @@ _C_OF = SHAPE_TABLES[0].copy()
 _LIMIT_OF = SHAPE_TABLES[1].copy()
 
 
+@njit(inline="always", **_opts)
+def _next_threshold(need, cycle, e, reset, jitter, lk_jitter):
+    """The threshold of the cycle after ``cycle`` (:func:`fire_cycle`):
+    ``(lead, eps, d, hd)``, the threshold's place relative to the crossing
+    electron ``lead = need − ⌈need⌉``, the jitter ``ε`` (exact normal, the
+    pixel's jitter key ``lk_jitter``, counter ``cycle``), the electrons ``d``
+    to the next threshold (from the crossing; zero reset: from the readout's
+    end) and the shape ``hd = ⌈d⌉`` of its wait (0 where ``d`` ≤ 0)."""
+    m = np.ceil(need) if need > 0.0 else 0.0
+    eps = 0.0
+    if jitter > 0.0:
+        z = normal(readout_key(lk_jitter, np.uint64(cycle)))
+        eps = min(max(jitter * z, -0.5), 0.5)
+    lead = need - m
+    d = e + e * eps if reset == ZERO else (lead + e) + e * eps
+    hd = np.ceil(d) if d > 0.0 else 0.0
+    return lead, eps, d, hd
+
+
+@njit(inline="always", **_opts)
+def lowest_wait(g, limit):
+    """The lowest wait at a modulo firing for which ``wait + g`` (``g`` > 0) is
+    the new wait: ``−wait`` within the drop-free ``limit`` and ``wait + g >
+    0``, i.e. ``wait`` at least the next float above ``−g``."""
+    return max(-limit, _bits_f64(_f64_bits(-g) - _U1))
+
+
 @njit(**_opts)
 def fire_cycle(wait, need, cycle, e, reset, jitter, lk_wait, lk_jitter, key_resid, key_refill,
                pix):
@@ -304,17 +331,9 @@ def fire_cycle(wait, need, cycle, e, reset, jitter, lk_wait, lk_jitter, key_resi
     """
     c1 = cycle + 1.0
     k1 = np.uint64(c1)
-    m = np.ceil(need) if need > 0.0 else 0.0
-    eps = 0.0
-    if jitter > 0.0:
-        z = normal(readout_key(lk_jitter, np.uint64(cycle)))
-        eps = min(max(jitter * z, -0.5), 0.5)
+    lead, eps, d, hd = _next_threshold(need, cycle, e, reset, jitter, lk_jitter)
     if reset == ZERO:
-        d = e + e * eps
-        return cycle_wait(d, lk_wait, k1), d, c1
-    lead = need - m
-    d = (lead + e) + e * eps
-    hd = np.ceil(d) if d > 0.0 else 0.0
+        return cycle_wait(hd, lk_wait, k1), d, c1
     if reset == SUBTRACT:
         w = wait + cycle_wait(hd, lk_wait, k1)
         return max(w, -BACKLOG_MAX * e), d, c1
@@ -430,9 +449,7 @@ def _prepare_loop(count, reset, jittered, jitter, wf, wu):
         if reset == MODULO:
             h0 = np.ceil(lead + e)
             limit = _LIMIT_OF[np.uint64(min(h0, top))]  # (read unconditionally: it vectorises)
-            limit = limit if h0 <= top else -np.inf
-            # the next float above −g (g > 0 where it matters): w ≥ it ⇔ w + g > 0
-            rl[i] = max(-limit, _bits_f64(_f64_bits(-g) - _U1))
+            rl[i] = lowest_wait(g, limit if h0 <= top else -np.inf)  # (g > 0 where OK)
         else:
             rl[i] = -np.inf
         ok[i] = np.uint64((hd > SMALL_SHAPE) & (hd <= top) & (not x_tail) & (not z_tail)
@@ -447,22 +464,13 @@ def prepare_lane(need, cycle, e, reset, jitter, lk_wait, lk_jitter):
     (the exact normal, :func:`cycle_wait`), the cycle's draw wherever ``wait``
     ≥ ``wmin`` at the firing (modulo: −∞ limit where
     :func:`drop_free_limit` has none, then ``wmin`` = +∞)."""
-    k1 = np.uint64(cycle + 1.0)
-    m = np.ceil(need) if need > 0.0 else 0.0
-    eps = 0.0
-    if jitter > 0.0:
-        z = normal(readout_key(lk_jitter, np.uint64(cycle)))
-        eps = min(max(jitter * z, -0.5), 0.5)
-    lead = need - m
-    d = e + e * eps if reset == ZERO else (lead + e) + e * eps
-    hd = np.ceil(d) if d > 0.0 else 0.0
-    g = cycle_wait(hd, lk_wait, k1)
+    lead, _, d, hd = _next_threshold(need, cycle, e, reset, jitter, lk_jitter)
+    g = cycle_wait(hd, lk_wait, np.uint64(cycle + 1.0))
     if reset != MODULO:
         return g, d, -np.inf
-    if not g > 0.0:  # (a shape of 0) the bound on wait + g below needs g > 0
+    if not g > 0.0:  # (a shape of 0) lowest_wait needs g > 0
         return g, d, np.inf
-    limit = drop_free_limit(np.ceil(lead + e))
-    return g, d, max(-limit, _bits_f64(_f64_bits(-g) - _U1))
+    return g, d, lowest_wait(g, drop_free_limit(np.ceil(lead + e)))
 
 
 @njit(inline="always", **_opts)

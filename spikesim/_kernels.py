@@ -602,23 +602,16 @@ def _event_run(ev, ia, di, gain, offset, electrons, ev_f, ev_u, n, t_a, inv, out
     firings it took from the cache finished (:func:`spikesim._event.event_sync`);
     returns ``(k, bad)`` as it does."""
     first, stride, nbytes = _word_at(out, n - t_off, y, blk)
-    g, lo = ev_f[GNEXT], ev_f[WMIN]
+    args = (ev[EV_WAIT], ia, di, gain, offset, electrons, ev_f[GNEXT], ev_f[WMIN], n, t_a, inv,
+            LAMBDA_MAX, -BACKLOG_MAX, out, first, stride, nbytes, count)
     if zero and static:
-        k, bad, used = event_cached_run64_zero_static(
-            ev[EV_WAIT], ia, di, gain, offset, electrons, g, lo, n, t_a, inv, LAMBDA_MAX,
-            -BACKLOG_MAX, out, first, stride, nbytes, count)
+        k, bad, used = event_cached_run64_zero_static(*args)
     elif zero:
-        k, bad, used = event_cached_run64_zero(
-            ev[EV_WAIT], ia, di, gain, offset, electrons, g, lo, n, t_a, inv, LAMBDA_MAX,
-            -BACKLOG_MAX, out, first, stride, nbytes, count)
+        k, bad, used = event_cached_run64_zero(*args)
     elif static:
-        k, bad, used = event_cached_run64_static(
-            ev[EV_WAIT], ia, di, gain, offset, electrons, g, lo, n, t_a, inv, LAMBDA_MAX,
-            -BACKLOG_MAX, out, first, stride, nbytes, count)
+        k, bad, used = event_cached_run64_static(*args)
     else:
-        k, bad, used = event_cached_run64(
-            ev[EV_WAIT], ia, di, gain, offset, electrons, g, lo, n, t_a, inv, LAMBDA_MAX,
-            -BACKLOG_MAX, out, first, stride, nbytes, count)
+        k, bad, used = event_cached_run64(*args)
     event_sync(used, ev, ev_f, ev_u)
     return k, bad
 
