@@ -58,7 +58,14 @@ import numpy as np
 from numba import njit
 
 from spikesim._poisson import LAMBDA_MAX, poisson
-from spikesim._simd import advance_cycles64, lowest_bit_index, popcount, prefer_wide_vectors
+from spikesim._simd import (
+    advance_cycles64,
+    high_bits_at_least64,
+    lowest_bit_index,
+    masked_move64,
+    popcount,
+    prefer_wide_vectors,
+)
 from spikesim.rng import (
     _bits_f64,
     _f64_bits,
@@ -375,10 +382,11 @@ FAST_GROUP = 8
 
 
 @njit(**_inner)
-def prepare_fast(count, reset, jitter, wf, wu):
-    """The part of :func:`fire_cycle` that does not depend on the wait, for the
-    ``count`` compacted lanes of ``wf``/``wu`` (rows :data:`CN`, :data:`CC`,
-    :data:`CE`, :data:`CKW`, :data:`CKJ`): the jitter normal, the next need
+def prepare_fast(count, reset, jitter, need, cycle, electrons, key_wait, key_jitter, wf, wu):
+    """The part of :func:`fire_cycle` that does not depend on the wait, for
+    ``count`` lanes (their need, cycle, electrons per threshold and wait and
+    jitter lane keys: the compacted rows :data:`CN`, :data:`CC`, :data:`CE`,
+    :data:`CKW`, :data:`CKJ`, or a block's own rows): the jitter normal, the next need
     ``d`` (row :data:`RD`), the first Marsaglia–Tsang candidate ``g`` of
     ``Gamma(⌈d⌉)`` (row :data:`RG`), and the lowest wait at the firing for
     which ``g`` gives the new wait (row :data:`RL`; −∞ for subtract and
@@ -399,61 +407,70 @@ def prepare_fast(count, reset, jitter, wf, wu):
     2–8× slower), on 512-bit vectors (:func:`prefer_wide_vectors`).
     """
     prefer_wide_vectors()
+    lanes = (need, cycle, electrons, key_wait, key_jitter)
     jittered = jitter > 0.0
     if reset == MODULO:
         if jittered:
-            _prepare_loop(count, MODULO, True, jitter, wf, wu)
+            _prepare_loop(MODULO, True, count, jitter, lanes, wf, wu)
         else:
-            _prepare_loop(count, MODULO, False, jitter, wf, wu)
+            _prepare_loop(MODULO, False, count, jitter, lanes, wf, wu)
     elif reset == SUBTRACT:
         if jittered:
-            _prepare_loop(count, SUBTRACT, True, jitter, wf, wu)
+            _prepare_loop(SUBTRACT, True, count, jitter, lanes, wf, wu)
         else:
-            _prepare_loop(count, SUBTRACT, False, jitter, wf, wu)
+            _prepare_loop(SUBTRACT, False, count, jitter, lanes, wf, wu)
     elif jittered:
-        _prepare_loop(count, ZERO, True, jitter, wf, wu)
+        _prepare_loop(ZERO, True, count, jitter, lanes, wf, wu)
     else:
-        _prepare_loop(count, ZERO, False, jitter, wf, wu)
+        _prepare_loop(ZERO, False, count, jitter, lanes, wf, wu)
 
 
 @njit(inline="always", **_opts)
-def _prepare_loop(count, reset, jittered, jitter, wf, wu):
+def _draw_ahead(need, cycle, e, kw, kj, reset, jittered, jitter):
+    """The vector draw of :func:`prepare_fast` for one lane (``kw``, ``kj`` its
+    wait and jitter lane keys): ``(g, d, wmin, ok)``.  Branch-free."""
+    top = np.float64(TABLE_SHAPES - 1)
+    k = np.uint64(cycle)
+    eps = 0.0
+    z_tail = False
+    if jittered:
+        z, z_tail = _normal_body(readout_key(kj, k))
+        eps = min(max(jitter * z, -0.5), 0.5)
+    m = np.ceil(need) if need > 0.0 else 0.0
+    lead = need - m
+    d = e + e * eps if reset == ZERO else (lead + e) + e * eps
+    hd = np.ceil(d) if d > 0.0 else 0.0
+    bits = readout_key(kw, k + _U1)
+    x, x_tail = _normal_body(bits)
+    u = uniform(pixel_bits(bits, _U1))
+    dd = hd - _THIRD
+    c = _C_OF[np.uint64(min(hd, top))]  # 1/√(9·dd), read
+    t = 1.0 + c * x
+    g = dd * (t * t * t)
+    if reset == MODULO:
+        h0 = np.ceil(lead + e)
+        limit = _LIMIT_OF[np.uint64(min(h0, top))]  # (read unconditionally: it vectorises)
+        wmin = lowest_wait(g, limit if h0 <= top else -np.inf)  # (g > 0 where OK)
+    else:
+        wmin = -np.inf
+    ok = ((hd > SMALL_SHAPE) & (hd <= top) & (not x_tail) & (not z_tail)
+          & squeeze_accepts(u, x * x, c, t))
+    return g, d, wmin, ok
+
+
+@njit(inline="always", **_opts)
+def _prepare_loop(reset, jittered, count, jitter, lanes, wf, wu):
     """:func:`prepare_fast`'s loop for one reset mode and jitter switch
     (constants at each call, so the branches on them fold away)."""
-    cn, cc, ce, rg, rd, rl = wf[CN], wf[CC], wf[CE], wf[RG], wf[RD], wf[RL]
-    ckw, ckj, ok = wu[CKW], wu[CKJ], wu[OK]
-    top = np.float64(TABLE_SHAPES - 1)
-    zero = reset == ZERO
+    need, cycle, electrons, key_wait, key_jitter = lanes
+    rg, rd, rl, ok = wf[RG], wf[RD], wf[RL], wu[OK]
     for i in range(count):
-        need = cn[i]
-        e = ce[i]
-        k = np.uint64(cc[i])
-        eps = 0.0
-        z_tail = False
-        if jittered:
-            z, z_tail = _normal_body(readout_key(ckj[i], k))
-            eps = min(max(jitter * z, -0.5), 0.5)
-        m = np.ceil(need) if need > 0.0 else 0.0
-        lead = need - m
-        d = e + e * eps if zero else (lead + e) + e * eps
-        hd = np.ceil(d) if d > 0.0 else 0.0
-        bits = readout_key(ckw[i], k + _U1)
-        x, x_tail = _normal_body(bits)
-        u = uniform(pixel_bits(bits, _U1))
-        dd = hd - _THIRD
-        c = _C_OF[np.uint64(min(hd, top))]  # 1/√(9·dd), read
-        t = 1.0 + c * x
-        g = dd * (t * t * t)
+        g, d, wmin, good = _draw_ahead(need[i], cycle[i], electrons[i], key_wait[i],
+                                       key_jitter[i], reset, jittered, jitter)
         rg[i] = g
         rd[i] = d
-        if reset == MODULO:
-            h0 = np.ceil(lead + e)
-            limit = _LIMIT_OF[np.uint64(min(h0, top))]  # (read unconditionally: it vectorises)
-            rl[i] = lowest_wait(g, limit if h0 <= top else -np.inf)  # (g > 0 where OK)
-        else:
-            rl[i] = -np.inf
-        ok[i] = np.uint64((hd > SMALL_SHAPE) & (hd <= top) & (not x_tail) & (not z_tail)
-                          & squeeze_accepts(u, x * x, c, t))
+        rl[i] = wmin
+        ok[i] = np.uint64(good)
 
 
 @njit(**_opts)
@@ -509,13 +526,55 @@ def event_sync(used, ev, wf, wu):
         wu[MASKS, FRESH] &= ~used
 
 
+#: From this many stale lanes on, a refill draws the whole block in lane order
+#: (64 draws, no compaction); fewer are compacted first
+#: (:func:`prepare_fast`), which costs about 4 ns a lane more (listing the lanes
+#: and putting their draws back) but draws only them.
+LANE_ORDER_MIN = 32
+
+
 @njit(inline="always", **_opts)
 def event_refill(must, electrons, ev, reset, jitter, wf, wu):
+    """Fill the cache of the stale lanes ``must`` and of other stale lanes: with
+    at least :data:`LANE_ORDER_MIN` stale, every stale lane in lane order
+    (:func:`_refill_in_place`), else ``must`` and as many more as make whole
+    vectors (:func:`_refill_compacted`).  A lane's draw depends only on its
+    state, so drawing it early changes no bit."""
+    stale = ~wu[MASKS, FRESH]
+    if popcount(stale) >= LANE_ORDER_MIN:
+        _refill_in_place(stale, electrons, ev, reset, jitter, wf, wu)
+    else:
+        _refill_compacted(must, electrons, ev, reset, jitter, wf, wu)
+
+
+@njit(inline="always", **_opts)
+def _refill_in_place(stale, electrons, ev, reset, jitter, wf, wu):
+    """Fill the cache of every lane of ``stale``: :func:`prepare_fast` on the
+    block's own rows (every lane: a lane's draw depends only on its state, so
+    the others' are merely not kept), then :func:`prepare_lane` for the stale
+    lanes its vectors leave."""
+    prepare_fast(BLOCK, reset, jitter, ev[NEED], ev[CYCLE], electrons, wu[LKW], wu[LKJ], wf, wu)
+    masked_move64(stale, wf[GNEXT], wf[RG])
+    masked_move64(stale, wf[DNEXT], wf[RD])
+    masked_move64(stale, wf[WMIN], wf[RL])
+    left = stale & high_bits_at_least64(wu[OK], 0, 1, 1)  # (OK = 0)
+    while left != 0:
+        lane = lowest_bit_index(left)
+        left &= left - _U1
+        g, d, wmin = prepare_lane(ev[NEED, lane], ev[CYCLE, lane], electrons[lane], reset,
+                                  jitter, wu[LKW, lane], wu[LKJ, lane])
+        wf[GNEXT, lane] = g
+        wf[DNEXT, lane] = d
+        wf[WMIN, lane] = wmin
+    wu[MASKS, FRESH] |= stale
+
+
+@njit(inline="always", **_opts)
+def _refill_compacted(must, electrons, ev, reset, jitter, wf, wu):
     """Fill the cache of the stale lanes ``must`` and of as many other stale
     lanes as make whole vectors (at least those ``must`` rounded up to
     :data:`FAST_GROUP`, at most every stale lane rounded down): their indices
-    are listed, :func:`prepare_fast` draws them, and the results go back by lane.
-    A lane's draw depends only on its state, so drawing it early changes no bit."""
+    are listed, :func:`prepare_fast` draws them, and the results go back by lane."""
     stale = ~wu[MASKS, FRESH]
     n_stale = np.int64(popcount(stale))
     want = max((np.int64(popcount(must)) + FAST_GROUP - 1) // FAST_GROUP * FAST_GROUP,
@@ -527,7 +586,7 @@ def event_refill(must, electrons, ev, reset, jitter, wf, wu):
         wf[CN, i] = 1000.0
         wf[CC, i] = 0.0
         wf[CE, i] = 1000.0
-    prepare_fast(full, reset, jitter, wf, wu)
+    prepare_fast(full, reset, jitter, wf[CN], wf[CC], wf[CE], wu[CKW], wu[CKJ], wf, wu)
     fresh = wu[MASKS, FRESH]
     for i in range(count):
         lane = wu[CI, i]

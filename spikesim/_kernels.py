@@ -679,7 +679,10 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
     # (no argument may be called ``sched``: numba's parallel loops use that name)
     height = frames.shape[0]
     rows = max(1, min(8, height // 64))  # rows per task: at least 64 tasks when H ≥ 64
-    for task in prange((height + rows - 1) // rows):
+    n_tasks = (height + rows - 1) // rows
+    step = spread_step(n_tasks) if model.event else 1  # (other modes cost the same per row)
+    for t in prange(n_tasks):
+        task = (t * step) % n_tasks
         scratch_f = np.empty((SCRATCH_F, BLOCK), np.float64)
         scratch_u = np.empty((SCRATCH_U, BLOCK), np.uint64)
         ev = np.zeros((4, BLOCK), np.float64)  # a block's event state
@@ -690,6 +693,25 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
             _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init, keep,
                           twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f,
                           w, f0)
+
+
+@njit(**_opts)
+def spread_step(n):
+    """A stride coprime with ``n`` near ``n/φ`` (φ the golden ratio): visiting tasks
+    ``t·step mod n`` for ``t = 0, 1, …`` spreads any run of consecutive ``t`` over
+    the whole range.  The parallel loop gives each thread a contiguous range of
+    ``t`` (numba's OpenMP layer schedules statically), and a row's cost follows
+    the scene (event-driven shot noise costs per spike), so contiguous rows
+    would hand one thread the bright part: on the benchmark scene, whose top
+    half fires twice as often as its bottom, 15 % of the time at 2 threads."""
+    step = max(1, np.int64(round(n * 0.6180339887498949)))
+    while True:
+        a, b = n, step
+        while b != 0:
+            a, b = b, a % b
+        if a == 1:
+            return step
+        step += 1
 
 
 @njit(**_inner)

@@ -486,3 +486,22 @@ def advance_cycles64(typingctx, mask, need, dnext, cycle):
         return context.get_dummy_value()
 
     return types.void(mask, need, dnext, cycle), codegen
+
+
+@intrinsic
+def masked_move64(typingctx, mask, dst, src):
+    """``dst[k] = src[k]`` for the lanes ``k`` of ``mask`` (bit ``k``), 64
+    contiguous float64 lanes each: one masked vector move."""
+    if not (mask == types.uint64 and _is_f64_array(dst) and _is_f64_array(src)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        fvec = ir.VectorType(ir.DoubleType(), LANES)
+        zero = ir.IntType(64)(0)
+        m = builder.bitcast(args[0], ir.VectorType(ir.IntType(1), LANES))
+        dst_p, src_p = (_lanes_ptr(context, builder, sig, args, k, zero, fvec) for k in (1, 2))
+        builder.store(builder.select(m, builder.load(src_p, align=8),
+                                     builder.load(dst_p, align=8)), dst_p, align=8)
+        return context.get_dummy_value()
+
+    return types.void(mask, dst, src), codegen

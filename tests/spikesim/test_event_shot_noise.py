@@ -146,7 +146,8 @@ def test_prepared_draw_gives_the_scalar_cycle_where_it_applies(reset, e, bright,
     rng = np.random.default_rng(reset * 31 + int(e))
     n = 4096
     wf, wu, waits = _lanes(rng, n, e, bright)
-    _event.prepare_fast(n, reset, jitter, wf, wu)
+    _event.prepare_fast(n, reset, jitter, wf[_event.CN], wf[_event.CC], wf[_event.CE],
+                        wu[_event.CKW], wu[_event.CKJ], wf, wu)
     vector = applied = 0
     for i in range(n):
         state = (wf[_event.CN, i], wf[_event.CC, i], wf[_event.CE, i])
@@ -170,6 +171,46 @@ def test_prepared_draw_gives_the_scalar_cycle_where_it_applies(reset, e, bright,
         assert vector > 0.97 * n and applied == n
     if e <= 5.0:
         assert vector < 0.01 * n  # shapes ≤ 8 (nearly all here): the scalar product of uniforms
+
+
+@pytest.mark.parametrize("reset", [0, 1, 2])
+@pytest.mark.parametrize("n_stale", [5, 31, 32, 64])
+def test_refill_draws_every_stale_lane_it_must_as_the_scalar_draw_and_keeps_the_rest(reset,
+                                                                                       n_stale):
+    """:func:`event_refill`, compacted (fewer than ``LANE_ORDER_MIN`` stale) or
+    in lane order: the lanes it must draw, and whichever other stale lanes it
+    draws, hold :func:`prepare_lane`'s draw bit for bit; fresh lanes keep their
+    cache; the fresh mask gains exactly the drawn lanes."""
+    rng = np.random.default_rng(reset * 7 + n_stale)
+    ev = np.zeros((4, 64))
+    ev[_event.NEED] = 1000.0 * (0.2 + rng.random(64))
+    ev[_event.CYCLE] = rng.integers(0, 9000, 64).astype(np.float64)
+    electrons = 1000.0 * (1.0 + 0.05 * rng.standard_normal(64))
+    wf = np.full((_event.EV_WORK_F, 64), 7.5)
+    wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
+    wu[_event.LKW] = rng.integers(0, 2**63, 64, dtype=np.uint64)
+    wu[_event.LKJ] = rng.integers(0, 2**63, 64, dtype=np.uint64)
+    stale_lanes = rng.choice(64, n_stale, replace=False)
+    stale = np.uint64(sum(1 << int(k) for k in stale_lanes))
+    must = np.uint64(sum(1 << int(k) for k in stale_lanes[:3]))
+    wu[_event.MASKS, _event.FRESH] = ~stale
+    jitter = 0.006
+    _event.event_refill(must, electrons, ev, reset, jitter, wf, wu)
+    fresh = int(wu[_event.MASKS, _event.FRESH])
+    drawn = fresh & int(stale)
+    assert drawn & int(must) == int(must)
+    if n_stale >= _event.LANE_ORDER_MIN:
+        assert drawn == int(stale)
+    for lane in range(64):
+        cached = wf[[_event.GNEXT, _event.DNEXT, _event.WMIN], lane]
+        if drawn >> lane & 1:
+            want = _event.prepare_lane(ev[_event.NEED, lane], ev[_event.CYCLE, lane],
+                                       electrons[lane], reset, jitter, wu[_event.LKW, lane],
+                                       wu[_event.LKJ, lane])
+            assert cached.view(np.uint64).tolist() == np.array(want).view(np.uint64).tolist()
+        else:
+            assert cached.tolist() == [7.5, 7.5, 7.5]
+    assert fresh == int(~stale) | drawn
 
 
 def test_reset_codes_and_backlog_limit_agree_with_the_kernel():

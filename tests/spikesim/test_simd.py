@@ -18,6 +18,7 @@ from spikesim._simd import (
     linear_carry_run64,
     linear_carry_run64_zero,
     lowest_bit_index,
+    masked_move64,
     paper_carry_add64,
     paper_carry_add64_zero,
     popcount,
@@ -292,6 +293,21 @@ def test_advance_cycles64_moves_need_and_counts_cycles_on_the_masked_lanes_only(
     _advance(np.uint64(mask), need, dnext, cycle)
     np.testing.assert_array_equal(need, want_need)
     np.testing.assert_array_equal(cycle, want_cycle)
+
+
+@njit(cache=False)
+def _masked_move(mask, dst, src):
+    masked_move64(mask, dst, src)
+
+
+def test_masked_move64_moves_the_masked_lanes_only():
+    rng = np.random.default_rng(3)
+    dst, src = rng.random(64), rng.random(64)
+    mask = int(rng.integers(0, 2**63)) * 2 + 1
+    sel = np.array([(mask >> k) & 1 for k in range(64)], bool)
+    want = np.where(sel, src, dst)
+    _masked_move(np.uint64(mask), dst, src)
+    np.testing.assert_array_equal(dst, want)
 
 
 def test_prefer_wide_vectors_marks_the_calling_function():
