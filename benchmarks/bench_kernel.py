@@ -227,6 +227,59 @@ def physical_vs_paper(size, n, repeats=3):
     return out
 
 
+#: Radiance scales of :func:`rate_sweep` (about 0.03 to 0.28 spikes per readout).
+SWEEP = (0.18, 0.35, 0.6, 1.0, 1.7)
+
+
+def rate_sweep(size, n, repeats=3):
+    """Physical over paper GN σ = 10 throughput (median and range over
+    ``repeats`` alternating rounds, ``n`` readouts per call) on the static
+    scene scaled by each of :data:`SWEEP`, with the physical stream's mean
+    spikes per readout: where physical mode's per-spike cost meets paper
+    mode's per-readout cost."""
+    paper = ss.Sensor(height=size, width=size, cfa="RGGB", noise=NOISES["paper GN σ=10"])
+    phys = ss.Sensor(height=size, width=size, cfa="RGGB", noise=NOISES["physical (defaults)"])
+    base = make_scene("static", size, n, paper.clock_hz).radiance(0.0)
+    points = []
+    for scale in SWEEP:
+        scene = ss.scenes.Static(base * scale)
+        rate = float(ss.simulate(scene, phys, 64, gt_readouts=[]).firing_rate().mean())
+        ss.simulate(scene, paper, 32, gt_readouts=[])
+        ratios = []
+        for _ in range(repeats):
+            t_paper = _time_call(scene, paper, n)
+            ratios.append(t_paper / _time_call(scene, phys, n))
+        points.append({"scale": scale, "spikes_per_readout": rate, **_median_range(ratios)})
+        print(json.dumps(points[-1]), flush=True)
+    return points
+
+
+def plot_sweep(points, title, path: Path) -> None:
+    """Physical / paper throughput against spikes per readout, with parity,
+    the benchmark scene's rate and a real capture's."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    x = [p["spikes_per_readout"] for p in points]
+    y = [p["median"] for p in points]
+    err = [[p["median"] - p["min"] for p in points], [p["max"] - p["median"] for p in points]]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label="physical / paper GN σ=10")
+    ax.axhline(1.0, color="k", ls="--", lw=1, label="same cost")
+    ax.axvline(0.033, color="tab:green", ls=":", label="real 250×250 capture (0.033)")
+    ax.axvline(0.167, color="tab:red", ls=":", label="benchmark scene (0.167)")
+    ax.set_xscale("log")
+    ax.set_xlabel("physical stream's spikes per pixel and readout")
+    ax.set_ylabel("throughput ratio (>1: physical faster)")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def time_reference(scene, sensor, n, seed=0):
     t0 = time.perf_counter()
     packed = reference_simulate(scene, sensor, n, seed=seed)
@@ -317,11 +370,12 @@ def ratios_only(size, n, out: Path) -> None:
     """:func:`physical_vs_paper` alone, written to ``kernel_ratios.{json,md}``."""
     load = os.getloadavg()[0]
     ratios = physical_vs_paper(size, n)
+    sweep = rate_sweep(size, n)
     result = {"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
                          f"numba threads {numba.get_num_threads()}, load average {load:.1f} "
                          "at the start",
               "size": [size, size], "cfa": "RGGB", "readouts_per_call": n,
-              "same_run_ratios": ratios,
+              "same_run_ratios": ratios, "rate_sweep": sweep,
               "command": f"python benchmarks/bench_kernel.py --ratios-only --size {size}"}
     out.mkdir(parents=True, exist_ok=True)
     (out / "kernel_ratios.json").write_text(json.dumps(result, indent=2))
@@ -333,7 +387,15 @@ def ratios_only(size, n, out: Path) -> None:
         for case, v in cases.items():
             lines.append(f"| {what} | {case} | {v['median']:.3g} | "
                          f"{v['min']:.3g}–{v['max']:.3g} |")
+    lines += ["", "The static scene scaled (`kernel_ratios.png`): physical throughput over",
+              "paper GN's.", "", "| radiance scale | spikes per readout | median | range |",
+              "|---:|---:|---:|---|"]
+    for p in sweep:
+        lines.append(f"| {p['scale']} | {p['spikes_per_readout']:.3f} | {p['median']:.3g} | "
+                     f"{p['min']:.3g}–{p['max']:.3g} |")
     (out / "kernel_ratios.md").write_text("\n".join(lines) + "\n")
+    plot_sweep(sweep, f"Physical against paper-mode noise, {size}×{size} RGGB, "
+               f"{numba.get_num_threads()} threads", out / "kernel_ratios.png")
     print("\n".join(lines))
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from numba import njit
@@ -308,6 +310,16 @@ def test_masked_move64_moves_the_masked_lanes_only():
     want = np.where(sel, src, dst)
     _masked_move(np.uint64(mask), dst, src)
     np.testing.assert_array_equal(dst, want)
+
+
+def test_merged_lanes_are_stored_whole_not_as_masked_stores():
+    """:func:`masked_move64` and :func:`advance_cycles64` store whole vectors:
+    a load from the bytes of a masked store waits until that store reaches the
+    cache, and the scalar loads that follow them stalled (the AVX-512 form
+    ``vmovupd %zmm, (mem){%k}`` must not appear)."""
+    asm = "".join(_masked_move.inspect_asm().values()) + "".join(_advance.inspect_asm().values())
+    assert "vmovupd" in asm or "vmovapd" in asm or "movupd" in asm  # the stores are there
+    assert not re.search(r"vmov[au]p[sd]\s+%zmm\d+,\s*[^,\s]*\(%\w+[^)]*\)\{%k", asm)
 
 
 def test_prefer_wide_vectors_marks_the_calling_function():
