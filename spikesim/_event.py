@@ -527,9 +527,9 @@ def event_sync(used, ev, wf, wu):
 
 
 #: From this many stale lanes on, a refill draws the whole block in lane order
-#: (64 draws, no compaction); fewer are compacted first
-#: (:func:`prepare_fast`), which costs about 4 ns a lane more (listing the lanes
-#: and putting their draws back) but draws only them.
+#: (64 draws, no compaction); fewer are listed first and only they are drawn,
+#: which costs about 4 ns a lane more (listing the lanes and putting their
+#: draws back).
 LANE_ORDER_MIN = 32
 
 

@@ -13,12 +13,16 @@ packed layout of docs/architecture.md, Conventions.
 
 from __future__ import annotations
 
+import platform
+
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
 LANES = 64
+#: Whether this process compiles for x86 (see :func:`_merge_store`).
+_X86 = platform.machine().lower() in ("x86_64", "amd64", "i686", "x86")
 
 
 def _is_u64_array(t) -> bool:
@@ -470,7 +474,12 @@ def _merge_store(builder, mask, new, ptr):
     and a load from a masked store's bytes cannot take its data until the store
     reaches the cache (Intel): the scalar loads that list the lanes after a
     refill or a readout run then stalled (12 % of the block function's samples).
-    An empty inline-asm copy of each 8-lane part of ``old`` hides the load."""
+    An empty inline-asm copy of each 8-lane part of ``old`` hides the load (on
+    x86 only, whose constraint ``v`` names its vector registers; elsewhere a
+    plain select)."""
+    if not _X86:
+        builder.store(builder.select(mask, new, builder.load(ptr, align=8)), ptr, align=8)
+        return
     part = ir.VectorType(ir.DoubleType(), 8)
     opaque = ir.FunctionType(part, [part])
     base = builder.bitcast(ptr, part.as_pointer())
@@ -510,7 +519,8 @@ def advance_cycles64(typingctx, mask, need, dnext, cycle):
 @intrinsic
 def masked_move64(typingctx, mask, dst, src):
     """``dst[k] = src[k]`` for the lanes ``k`` of ``mask`` (bit ``k``), 64
-    contiguous float64 lanes each: one masked vector move."""
+    contiguous float64 lanes each: a vector select, stored whole
+    (:func:`_merge_store`)."""
     if not (mask == types.uint64 and _is_f64_array(dst) and _is_f64_array(src)):
         return None
 
