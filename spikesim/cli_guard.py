@@ -124,9 +124,11 @@ def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False)
         _say(label, f"error: {exc}")
         return EXIT_ERROR
     except KeyboardInterrupt:
+        _drop_cut_short_bars()
         _say(label, "interrupted; files being written were removed")
         return EXIT_INTERRUPTED
     except Terminated:
+        _drop_cut_short_bars()
         _say(label, "stopped by SIGTERM; files being written were removed")
         return EXIT_TERMINATED
     except MemoryError:
@@ -144,6 +146,27 @@ def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False)
         _say(label, f"internal error: {type(exc).__name__}: {exc} (run again with --debug "
                     "for the traceback, and please report it)")
         return EXIT_BUG
+
+
+def _drop_cut_short_bars() -> None:
+    """A stop that lands while a progress bar is being built leaves it half
+    made, and tqdm's finalizer then fails on it ("Exception ignored in
+    tqdm.__del__", with a traceback) once the stop's exception is cleared:
+    drop those reports (the stop's one line says what happened); any other
+    goes to the hook that was there."""
+    previous = sys.unraisablehook
+    if getattr(previous, "drops_cut_short_bars", False):
+        return
+
+    def hook(unraisable):
+        where = unraisable.object
+        if (getattr(where, "__name__", "") == "__del__"
+                and (getattr(where, "__module__", "") or "").startswith("tqdm")):
+            return
+        previous(unraisable)
+
+    hook.drops_cut_short_bars = True
+    sys.unraisablehook = hook
 
 
 def _say(label: str, text: str) -> None:

@@ -1,0 +1,44 @@
+"""A stop (SIGTERM, Ctrl-C) that lands while a progress bar is being built
+still ends in the stop's one line: the half-built bar's finalizer report is
+dropped."""
+
+from __future__ import annotations
+
+import gc
+import sys
+
+import pytest
+from tqdm import tqdm
+
+from spikesim.cli_guard import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated, run_guarded
+
+
+class _CutShort(tqdm):
+    """A bar whose construction the signal interrupts half way (tqdm has set
+    ``disable`` but not ``pos``, which its ``close`` reads)."""
+
+    def __init__(self, stop):
+        self.disable = False
+        raise stop()
+
+
+@pytest.mark.parametrize("stop, code, line", [
+    (Terminated, EXIT_TERMINATED, "stopped by SIGTERM"),
+    (KeyboardInterrupt, EXIT_INTERRUPTED, "interrupted"),
+])
+def test_a_stop_inside_a_progress_bar_gives_its_one_line_and_nothing_more(stop, code, line,
+                                                                          capsys, monkeypatch):
+    reported = []
+    monkeypatch.setattr(sys, "unraisablehook", reported.append)
+
+    def call():
+        _CutShort(stop)
+
+    assert run_guarded("spikesim test", call) == code
+    gc.collect()
+    err = capsys.readouterr().err
+    assert err.splitlines() == [f"spikesim test: {line}; files being written were removed"]
+    assert reported == []
+    # other finalizers' reports still reach the hook that was there
+    sys.unraisablehook(type("U", (), {"object": print, "exc_value": ValueError()})())
+    assert len(reported) == 1
