@@ -281,15 +281,23 @@ def _next_threshold(need, cycle, e, reset, jitter, lk_jitter):
     pixel's jitter key ``lk_jitter``, counter ``cycle``), the electrons ``d``
     to the next threshold (from the crossing; zero reset: from the readout's
     end) and the shape ``hd = ⌈d⌉`` of its wait (0 where ``d`` ≤ 0)."""
-    m = np.ceil(need) if need > 0.0 else 0.0
     eps = 0.0
     if jitter > 0.0:
         z = normal(readout_key(lk_jitter, np.uint64(cycle)))
         eps = min(max(jitter * z, -0.5), 0.5)
+    lead, d, hd = _threshold_at(need, e, eps, reset)
+    return lead, eps, d, hd
+
+
+@njit(inline="always", **_opts)
+def _threshold_at(need, e, eps, reset):
+    """``(lead, d, hd)`` of :func:`_next_threshold` for the jitter ``eps``
+    (branch-free: the vector draw shares it)."""
+    m = np.ceil(need) if need > 0.0 else 0.0
     lead = need - m
     d = e + e * eps if reset == ZERO else (lead + e) + e * eps
     hd = np.ceil(d) if d > 0.0 else 0.0
-    return lead, eps, d, hd
+    return lead, d, hd
 
 
 @njit(inline="always", **_opts)
@@ -436,10 +444,7 @@ def _draw_ahead(need, cycle, e, kw, kj, reset, jittered, jitter):
     if jittered:
         z, z_tail = _normal_body(readout_key(kj, k))
         eps = min(max(jitter * z, -0.5), 0.5)
-    m = np.ceil(need) if need > 0.0 else 0.0
-    lead = need - m
-    d = e + e * eps if reset == ZERO else (lead + e) + e * eps
-    hd = np.ceil(d) if d > 0.0 else 0.0
+    lead, d, hd = _threshold_at(need, e, eps, reset)
     bits = readout_key(kw, k + _U1)
     x, x_tail = _normal_body(bits)
     u = uniform(pixel_bits(bits, _U1))
@@ -561,11 +566,7 @@ def _refill_in_place(stale, electrons, ev, reset, jitter, wf, wu):
     while left != 0:
         lane = lowest_bit_index(left)
         left &= left - _U1
-        g, d, wmin = prepare_lane(ev[NEED, lane], ev[CYCLE, lane], electrons[lane], reset,
-                                  jitter, wu[LKW, lane], wu[LKJ, lane])
-        wf[GNEXT, lane] = g
-        wf[DNEXT, lane] = d
-        wf[WMIN, lane] = wmin
+        _prepare_lane_into(lane, electrons, ev, reset, jitter, wf, wu)
     wu[MASKS, FRESH] |= stale
 
 
@@ -595,13 +596,19 @@ def _refill_compacted(must, electrons, ev, reset, jitter, wf, wu):
             wf[DNEXT, lane] = wf[RD, i]
             wf[WMIN, lane] = wf[RL, i]
         else:  # (1.6 % at 1000 e⁻: a normal's tail) the same draw, scalar
-            g, d, wmin = prepare_lane(wf[CN, i], wf[CC, i], wf[CE, i], reset, jitter,
-                                      wu[CKW, i], wu[CKJ, i])
-            wf[GNEXT, lane] = g
-            wf[DNEXT, lane] = d
-            wf[WMIN, lane] = wmin
+            _prepare_lane_into(lane, electrons, ev, reset, jitter, wf, wu)
         fresh |= _U1 << lane
     wu[MASKS, FRESH] = fresh
+
+
+@njit(inline="always", **_opts)
+def _prepare_lane_into(lane, electrons, ev, reset, jitter, wf, wu):
+    """:func:`prepare_lane` for one lane of the block, into its cache."""
+    g, d, wmin = prepare_lane(ev[NEED, lane], ev[CYCLE, lane], electrons[lane], reset, jitter,
+                              wu[LKW, lane], wu[LKJ, lane])
+    wf[GNEXT, lane] = g
+    wf[DNEXT, lane] = d
+    wf[WMIN, lane] = wmin
 
 
 @njit(inline="always", **_opts)
