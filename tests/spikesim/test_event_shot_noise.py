@@ -213,6 +213,26 @@ def test_refill_draws_every_stale_lane_it_must_as_the_scalar_draw_and_keeps_the_
     assert fresh == int(~stale) | drawn
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_first_waits_equal_the_scalar_first_wait_bit_for_bit(seed):
+    """:func:`first_waits` (vector candidates, scalar fallback) gives every lane
+    ``cycle_wait(need, key, 0)`` bit for bit: ordinary shapes (most taken on
+    the vectors), needs ≤ 0, small shapes, shapes beyond the table, and
+    enough lanes that some normals fall in the tails."""
+    rng = np.random.default_rng(seed)
+    ev = np.zeros((4, 64))
+    need = 1000.0 * (0.01 + rng.random(64))
+    need[:4] = [0.0, -3.5, 2.2, 8.0]  # no wait, a backlog, small shapes
+    need[4:6] = [float(_event.TABLE_SHAPES) + 10.5, 5e5]  # beyond the table
+    ev[_event.NEED] = need
+    wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
+    wu[_event.LKW] = rng.integers(0, 2**63, 64, dtype=np.uint64)
+    _event.first_waits(ev, wu)
+    want = [_event.cycle_wait(n, k, 0) for n, k in zip(need, wu[_event.LKW], strict=True)]
+    assert ev[_event.WAIT].view(np.uint64).tolist() == np.array(want).view(np.uint64).tolist()
+    assert (np.asarray(want)[4:] > 0).all() and want[0] == 0.0 and want[1] == 0.0
+
+
 def test_reset_codes_and_backlog_limit_agree_with_the_kernel():
     assert (_event.MODULO, _event.SUBTRACT, _event.ZERO) == (
         _kernels.RESET_MODULO, _kernels.RESET_SUBTRACT, _kernels.RESET_ZERO)
