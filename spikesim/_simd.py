@@ -40,17 +40,15 @@ def _avx512(context) -> bool:
     return "+avx512f" in str(features).split(",")
 
 
-def _opaque(builder, value, constraint, after=None):
+def _opaque(builder, value, constraint, after=()):
     """``value`` passed through an empty inline-asm copy (``constraint`` "v": a
     vector register, "r": a general one), so LLVM cannot look through it and
-    fold what follows into it; no instruction is emitted.  ``after`` (optional,
-    a vector): the copy also takes it as an input, which orders the code that
-    uses the result after the code that makes ``after``."""
-    if after is None:
-        fty = ir.FunctionType(value.type, [value.type])
-        return builder.asm(fty, "", f"={constraint},0", [value], False)
-    fty = ir.FunctionType(value.type, [value.type, after.type])
-    return builder.asm(fty, "", f"={constraint},0,v", [value, after], False)
+    fold what follows into it; no instruction is emitted.  ``after`` (vectors):
+    (vectors or integers): the copy also takes them as inputs, which orders
+    the code that uses the result after the code that makes them."""
+    fty = ir.FunctionType(value.type, [value.type] + [v.type for v in after])
+    inputs = "".join(",r" if isinstance(v.type, ir.IntType) else ",v" for v in after)
+    return builder.asm(fty, "", f"={constraint},0{inputs}", [value, *after], False)
 
 
 def _part(builder, vec, k):
@@ -114,7 +112,7 @@ def _splat(builder, vec, value):
     return builder.shuffle_vector(
         builder.insert_element(ir.Constant(vec, ir.Undefined), value, ir.IntType(64)(0)),
         ir.Constant(vec, ir.Undefined),
-        ir.Constant(ir.VectorType(ir.IntType(32), LANES), None))
+        ir.Constant(ir.VectorType(ir.IntType(32), vec.count), None))
 
 
 def _store_step(builder, acc_ptr, old, new, zero_reset):
@@ -208,7 +206,7 @@ def _zero_reset_step(context, builder, old, inc):
     for k in range(LANES // 8):
         o = _part(builder, old, k)
         if parts:
-            o = _opaque(builder, o, "v", after=parts[-1])
+            o = _opaque(builder, o, "v", after=parts[-1:])
         keep_k = builder.icmp_unsigned("<=", o, _part(builder, limit, k))
         parts.append(builder.select(keep_k, builder.add(o, _part(builder, inc, k)),
                                     ir.Constant(o.type, None)))
@@ -460,40 +458,46 @@ def _event_cached_run(zero_reset, static):
         def codegen(context, builder, sig, args):
             i64 = ir.IntType(64)
             fvec = ir.VectorType(ir.DoubleType(), LANES)
+            part = ir.VectorType(ir.DoubleType(), 8)
             zero = i64(0)
+            wide = _avx512(context)
             wait_ptr = _lanes_ptr(context, builder, sig, args, 0, zero, fvec)
-            a, d, g, o, e, gn = (
-                builder.load(_lanes_ptr(context, builder, sig, args, k, zero, fvec), align=8)
-                for k in (1, 2, 3, 4, 5, 6))
             lo_ptr = _lanes_ptr(context, builder, sig, args, 7, zero, fvec)
+            a, d, g, o, e, gn = (
+                [_part(builder, builder.load(
+                    _lanes_ptr(context, builder, sig, args, k, zero, fvec), align=8), j)
+                 for j in range(LANES // 8)]
+                for k in (1, 2, 3, 4, 5, 6))
             n_first = context.cast(builder, args[8], sig.args[8], types.int64)
             t_a_, inv_, lam_max_, backlog_ = (
                 context.cast(builder, args[k], sig.args[k], types.float64) for k in (9, 10, 11, 12))
             data, first_, stride_, nbytes_ = _out_bytes(context, builder, sig, args, 13)
             count_ = context.cast(builder, args[17], sig.args[17], types.int64)
-            cap = _splat(builder, fvec, lam_max_)
-            floor = builder.fmul(_splat(builder, fvec, backlog_), e)  # −BACKLOG_MAX·E
-            fzero = ir.Constant(fvec, [0.0] * LANES)
-            spent = ir.Constant(fvec, [float("inf")] * LANES)
+            cap = _splat(builder, part, lam_max_)
+            backlog_v = _splat(builder, part, backlog_)
+            floor = [builder.fmul(backlog_v, ej) for ej in e]  # −BACKLOG_MAX·E
+            fzero = ir.Constant(part, [0.0] * 8)
+            spent = ir.Constant(part, [float("inf")] * 8)
             half = ir.Constant(ir.DoubleType(), 0.5)
 
-            def electrons_at(k):
+            def electrons_at(k, j):
                 # phi = (float(n) + 0.5 - t_a) * inv, λ = min((g·(a + d·phi) + o)·E, cap):
                 # the scalar step's operations in its order (no contraction)
                 n = builder.sitofp(builder.add(n_first, k), ir.DoubleType())
                 phi = builder.fmul(builder.fsub(builder.fadd(n, half), t_a_), inv_)
-                level_now = builder.fadd(a, builder.fmul(d, _splat(builder, fvec, phi)))
-                qe = builder.fmul(builder.fadd(builder.fmul(g, level_now), o), e)
+                level_now = builder.fadd(a[j], builder.fmul(d[j], _splat(builder, part, phi)))
+                qe = builder.fmul(builder.fadd(builder.fmul(g[j], level_now), o[j]), e[j])
                 return builder.select(builder.fcmp_ordered("<", cap, qe), cap, qe)
 
-            lam_static = electrons_at(zero) if static else None
+            lam_static = [electrons_at(zero, j) for j in range(LANES // 8)] if static else None
             k_slot = cgutils.alloca_once_value(builder, zero)
             bad_slot = cgutils.alloca_once_value(builder, zero)
             used_slot = cgutils.alloca_once_value(builder, zero)
-            w_slot = cgutils.alloca_once(builder, fvec)
-            builder.store(builder.load(wait_ptr, align=8), w_slot)
-            lo_slot = cgutils.alloca_once(builder, fvec)
-            builder.store(builder.load(lo_ptr, align=8), lo_slot)
+            w_old, lo_old = builder.load(wait_ptr, align=8), builder.load(lo_ptr, align=8)
+            w_slots = [cgutils.alloca_once_value(builder, _part(builder, w_old, j))
+                       for j in range(LANES // 8)]
+            lo_slots = [cgutils.alloca_once_value(builder, _part(builder, lo_old, j))
+                        for j in range(LANES // 8)]
             loop = builder.append_basic_block("event_run.loop")
             body = builder.append_basic_block("event_run.body")
             done = builder.append_basic_block("event_run.done")
@@ -502,30 +506,42 @@ def _event_cached_run(zero_reset, static):
             k = builder.load(k_slot)
             builder.cbranch(builder.icmp_signed("<", k, count_), body, done)
             builder.position_at_end(body)
-            lam = lam_static if static else electrons_at(k)
-            w = builder.fsub(builder.load(w_slot), lam)
-            fired = builder.fcmp_ordered("<=", w, fzero)
-            used = builder.load(used_slot)
-            lo = builder.load(lo_slot)
-            take = builder.and_(fired, builder.fcmp_ordered(">=", w, lo))  # lo = +∞: not ready
-            builder.store(builder.select(take, spent, lo), lo_slot)
-            if zero_reset:
-                new_w = gn
-            else:
-                new_w = builder.fadd(w, gn)
-                new_w = builder.select(builder.fcmp_ordered("<", new_w, floor), floor, new_w)
-            builder.store(builder.select(take, new_w, w), w_slot)
-            builder.store(builder.or_(used, builder.bitcast(take, i64)), used_slot)
-            word = builder.bitcast(fired, i64)
+            word = taken = prev = None
+            for j in range(LANES // 8):  # 8 lanes at a time, in order (see the docstring)
+                lam = lam_static[j] if static else electrons_at(k, j)
+                w_in = builder.load(w_slots[j])
+                if wide and prev is not None:
+                    w_in = _opaque(builder, w_in, "v", after=prev)
+                w = builder.fsub(w_in, lam)
+                fired = builder.fcmp_ordered("<=", w, fzero)
+                lo = builder.load(lo_slots[j])
+                take = builder.and_(fired, builder.fcmp_ordered(">=", w, lo))  # lo = +∞: not ready
+                lo = builder.select(take, spent, lo)
+                builder.store(lo, lo_slots[j])
+                if zero_reset:
+                    new_w = gn[j]
+                else:
+                    new_w = builder.fadd(w, gn[j])
+                    new_w = builder.select(builder.fcmp_ordered("<", new_w, floor[j]), floor[j],
+                                           new_w)
+                w = builder.select(take, new_w, w)
+                builder.store(w, w_slots[j])
+                fired_byte, take_byte = (_byte_of(builder, m, j) if wide else builder.shl(
+                    builder.zext(builder.bitcast(m, ir.IntType(8)), i64), i64(8 * j))
+                    for m in (fired, take))
+                word = fired_byte if word is None else builder.or_(word, fired_byte)
+                taken = take_byte if taken is None else builder.or_(taken, take_byte)
+                prev = (w, lo, word, taken)
+            builder.store(builder.or_(builder.load(used_slot), taken), used_slot)
             _store_word(builder, data, builder.add(first_, builder.mul(k, stride_)), word,
                         nbytes_)
             builder.store(builder.add(k, i64(1)), k_slot)
-            bad = builder.xor(word, builder.bitcast(take, i64))  # fired, not taken
+            bad = builder.xor(word, taken)  # fired, not taken
             builder.store(bad, bad_slot)
             builder.cbranch(builder.icmp_unsigned("!=", bad, zero), done, loop)
             builder.position_at_end(done)
-            builder.store(builder.load(w_slot), wait_ptr, align=8)
-            builder.store(builder.load(lo_slot), lo_ptr, align=8)
+            builder.store(_join(builder, [builder.load(x) for x in w_slots]), wait_ptr, align=8)
+            builder.store(_join(builder, [builder.load(x) for x in lo_slots]), lo_ptr, align=8)
             return context.make_tuple(builder, result, [
                 builder.load(k_slot), builder.load(bad_slot), builder.load(used_slot)])
 
