@@ -572,7 +572,13 @@ event_cached_run64.__doc__ = """Up to ``count`` readouts of the event-driven sho
     the number of readouts done, the lanes of the last one still to settle
     (their waits are those at the firing; 0 when none), and the lanes that
     took their draw (once each at most), whose need and cycle the caller then
-    advances (:func:`spikesim._event.event_sync`)."""
+    advances (:func:`spikesim._event.event_sync`).
+
+    Each readout works through the block 8 lanes at a time, in order (with
+    AVX-512 each part's code follows the previous part's, :func:`_opaque`, and
+    its bits go through general registers, :func:`_byte_of`): on 64-lane
+    vectors LLVM made all sixteen masks of a readout first and spilled most of
+    them (17.4 against 11.1 ns a block-readout, static, cache-resident)."""
 #: The same for zero reset (a lane takes ``gnext`` itself), and for runs of
 #: constant radiance (``slope`` all zero, the caller checks: ``λ`` computed once).
 event_cached_run64_zero = _event_cached_run(True, False)
