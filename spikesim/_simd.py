@@ -67,11 +67,13 @@ def _join(builder, parts):
     return parts[0]
 
 
-def _byte_of(builder, mask8, k):
-    """The 8 bits of an <8 x i1> as bits ``8k`` to ``8k + 7`` of an i64, through
-    a general register (:func:`_mask_word`)."""
+def _byte_of(builder, mask8, k, through_gpr=True):
+    """The 8 bits of an <8 x i1> as bits ``8k`` to ``8k + 7`` of an i64, moved
+    to a general register first where ``through_gpr`` (:func:`_mask_word`)."""
     i64 = ir.IntType(64)
-    b = _opaque(builder, builder.bitcast(mask8, ir.IntType(8)), "r")
+    b = builder.bitcast(mask8, ir.IntType(8))
+    if through_gpr:
+        b = _opaque(builder, b, "r")
     return builder.shl(builder.zext(b, i64), i64(8 * k))
 
 
@@ -526,9 +528,7 @@ def _event_cached_run(zero_reset, static):
                                            new_w)
                 w = builder.select(take, new_w, w)
                 builder.store(w, w_slots[j])
-                fired_byte, take_byte = (_byte_of(builder, m, j) if wide else builder.shl(
-                    builder.zext(builder.bitcast(m, ir.IntType(8)), i64), i64(8 * j))
-                    for m in (fired, take))
+                fired_byte, take_byte = (_byte_of(builder, m, j, wide) for m in (fired, take))
                 word = fired_byte if word is None else builder.or_(word, fired_byte)
                 taken = take_byte if taken is None else builder.or_(taken, take_byte)
                 prev = (w, lo, word, taken)
