@@ -445,22 +445,31 @@ def _draw_ahead(need, cycle, e, kw, kj, reset, jittered, jitter):
         z, z_tail = _normal_body(readout_key(kj, k))
         eps = min(max(jitter * z, -0.5), 0.5)
     lead, d, hd = _threshold_at(need, e, eps, reset)
-    bits = readout_key(kw, k + _U1)
-    x, x_tail = _normal_body(bits)
-    u = uniform(pixel_bits(bits, _U1))
-    dd = hd - _THIRD
-    c = _C_OF[np.uint64(min(hd, top))]  # 1/√(9·dd), read
-    t = 1.0 + c * x
-    g = dd * (t * t * t)
+    g, accepted = _gamma_candidate(hd, readout_key(kw, k + _U1))
     if reset == MODULO:
         h0 = np.ceil(lead + e)
         limit = _LIMIT_OF[np.uint64(min(h0, top))]  # (read unconditionally: it vectorises)
         wmin = lowest_wait(g, limit if h0 <= top else -np.inf)  # (g > 0 where OK)
     else:
         wmin = -np.inf
-    ok = ((hd > SMALL_SHAPE) & (hd <= top) & (not x_tail) & (not z_tail)
-          & squeeze_accepts(u, x * x, c, t))
-    return g, d, wmin, ok
+    return g, d, wmin, accepted & (not z_tail)
+
+
+@njit(inline="always", **_opts)
+def _gamma_candidate(h, bits):
+    """:func:`gamma_integer`'s first candidate for the integer shape ``h`` from
+    ``bits``, branch-free for the vector draws: ``(g, accepted)``, where
+    ``accepted`` says ``g`` is :func:`gamma_integer`'s result bit for bit (shape
+    above :data:`SMALL_SHAPE` and within the tables, the normal in the body
+    table, accepted by the squeeze); elsewhere the scalar draw decides."""
+    top = np.float64(TABLE_SHAPES - 1)
+    x, x_tail = _normal_body(bits)
+    u = uniform(pixel_bits(bits, _U1))
+    c = _C_OF[np.uint64(min(h, top))]  # 1/√(9(h − ⅓)), read
+    t = 1.0 + c * x
+    g = (h - _THIRD) * (t * t * t)
+    return g, ((h > SMALL_SHAPE) & (h <= top) & (not x_tail)
+               & squeeze_accepts(u, x * x, c, t))
 
 
 @njit(inline="always", **_opts)
@@ -731,18 +740,12 @@ def first_waits(ev, wu):
     run draws these for every pixel; in scalar code they took a third of a
     1-readout physical-mode call (13.5 ms → 8.9 ms at 1000 × 1000)."""
     prefer_wide_vectors()
-    top = np.float64(TABLE_SHAPES - 1)
     need, wait, key, ok = ev[NEED], ev[WAIT], wu[LKW], wu[OK]
     for lane in range(BLOCK):
         m = np.ceil(need[lane]) if need[lane] > 0.0 else 0.0
-        bits = readout_key(key[lane], np.uint64(0))
-        x, x_tail = _normal_body(bits)
-        u = uniform(pixel_bits(bits, _U1))
-        c = _C_OF[np.uint64(min(m, top))]  # 1/√(9(m − ⅓)), read
-        t = 1.0 + c * x
-        wait[lane] = (m - _THIRD) * (t * t * t)
-        ok[lane] = np.uint64((m > SMALL_SHAPE) & (m <= top) & (not x_tail)
-                             & squeeze_accepts(u, x * x, c, t))
+        g, accepted = _gamma_candidate(m, readout_key(key[lane], np.uint64(0)))
+        wait[lane] = g
+        ok[lane] = np.uint64(accepted)
     left = high_bits_at_least64(ok, 0, 1, 1)  # (OK = 0)
     while left != 0:
         lane = lowest_bit_index(left)
