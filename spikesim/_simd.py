@@ -43,9 +43,9 @@ def _avx512(context) -> bool:
 def _opaque(builder, value, constraint, after=()):
     """``value`` passed through an empty inline-asm copy (``constraint`` "v": a
     vector register, "r": a general one), so LLVM cannot look through it and
-    fold what follows into it; no instruction is emitted.  ``after`` (vectors):
-    (vectors or integers): the copy also takes them as inputs, which orders
-    the code that uses the result after the code that makes them."""
+    fold what follows into it; no instruction is emitted.  ``after`` (vectors
+    or integers): the copy also takes them as inputs, which orders the code
+    that uses the result after the code that makes them."""
     fty = ir.FunctionType(value.type, [value.type] + [v.type for v in after])
     inputs = "".join(",r" if isinstance(v.type, ir.IntType) else ",v" for v in after)
     return builder.asm(fty, "", f"={constraint},0{inputs}", [value, *after], False)
