@@ -666,6 +666,19 @@ def event_settle(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu):
 
 
 @njit(inline="always", **_opts)
+def static_charge(n, t_a, inv, level, slope, gain, offset, electrons, lam_max, lam):
+    """``lam[l]``: the electrons lane ``l`` collects per readout on a run of
+    constant radiance (``slope`` zero) from readout ``n``,
+    ``min((gain·(level + slope·phi) + offset)·E, lam_max)`` with ``phi = (n + ½ −
+    t_a)·inv``: :func:`spikesim._simd.event_cached_run64`'s operations in its
+    order, made once for the static variants."""
+    phi = (np.float64(n) + 0.5 - t_a) * inv
+    for lane in range(BLOCK):
+        qe = (gain[lane] * (level[lane] + slope[lane] * phi) + offset[lane]) * electrons[lane]
+        lam[lane] = lam_max if lam_max < qe else qe
+
+
+@njit(inline="always", **_opts)
 def event_step(level, gain, offset, electrons, ev, reset, jitter, loss, keys, pix0, wf, wu):
     """One readout of the event-driven model for a 64-lane block; returns the
     spike mask.  ``level`` holds each lane's mean radiance of the readout;

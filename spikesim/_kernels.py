@@ -67,6 +67,7 @@ from spikesim._event import (
     event_step,
     event_sync,
     init_event_block,
+    static_charge,
 )
 from spikesim._event import WAIT as EV_WAIT
 from spikesim._poisson import LAMBDA_MAX, _shot_noise_block
@@ -512,10 +513,14 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                 moving = 0
                 for lane in range(BLOCK):
                     moving += 0 if di[lane] == 0.0 else 1
+                if moving == 0:
+                    static_charge(n0, t_a, inv, ia, di, gain, offset, electrons, LAMBDA_MAX,
+                                  ibuf)
                 n = n0
                 while n < n1:
-                    k, bad = _event_run(ev, ia, di, gain, offset, electrons, ev_f, ev_u, n,
-                                        t_a, inv, out, t_off, y, blk, n1 - n, zero, moving == 0)
+                    k, bad = _event_run(ev, ibuf if moving == 0 else ia, di, gain, offset,
+                                        electrons, ev_f, ev_u, n, t_a, inv, out, t_off, y, blk,
+                                        n1 - n, zero, moving == 0)
                     n += np.int64(k)
                     if bad != 0:
                         event_settle(bad, electrons, ev, reset, model.jitter, model.ev_keys,
@@ -597,7 +602,7 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
 def _event_run(ev, ia, di, gain, offset, electrons, ev_f, ev_u, n, t_a, inv, out, t_off, y, blk,
                count, zero, static):
     """Up to ``count`` readouts from ``n`` of a linear segment (``static``: of
-    constant radiance), event sampler without charge loss
+    constant radiance, ``ia`` then each lane's ``λ``), event sampler without charge loss
     (:func:`spikesim._simd.event_cached_run64` and its variants), the
     firings it took from the cache finished (:func:`spikesim._event.event_sync`);
     returns ``(k, bad)`` as it does."""

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from numba import njit
 
+from spikesim._event import static_charge
 from spikesim._simd import (
     advance_cycles64,
     carry_run64,
@@ -237,7 +238,8 @@ def test_popcount_counts_the_set_bits():
 @pytest.mark.parametrize("variant", [0, 1, 2, 3])
 def test_event_cached_run64_equals_the_scalar_steps_and_stops_where_a_lane_cannot_take(variant):
     """Waits in registers: each readout subtracts ``min((g·(a + d·phi) + o)·E,
-    cap)`` (static variants: ``d`` = 0); a firing lane whose wait is ≥ its
+    cap)`` (static variants: ``d`` = 0, and that ``λ`` is their ``level``
+    argument, made once by ``static_charge``); a firing lane whose wait is ≥ its
     ``wmin`` takes ``max(wait + gnext, floor·E)`` (zero reset: ``gnext``) and
     its ``wmin`` becomes +∞; every readout's firing word is stored; the call
     ends after the first readout where a firing lane could not take, returning
@@ -257,8 +259,12 @@ def test_event_cached_run64_equals_the_scalar_steps_and_stops_where_a_lane_canno
         lo = np.where(rng.random(64) < ready, top - 600.0 * rng.random(64), np.inf)
         out = np.full(9 * count + 20, 0xAA, np.uint8)
         got_w, got_lo = wait.copy(), lo.copy()
-        k, bad, used = _event_run(variant, got_w, a, d, g, o, e, gn, got_lo, n0, t_a, inv, cap,
-                                  floor, out, 3, 9, 8, count)
+        level = a
+        if static:
+            level = np.empty(64)
+            static_charge(n0, t_a, inv, a, d, g, o, e, cap, level)
+        k, bad, used = _event_run(variant, got_w, level, d, g, o, e, gn, got_lo, n0, t_a, inv,
+                                  cap, floor, out, 3, 9, 8, count)
         w, lw, took = wait.copy(), lo.copy(), np.zeros(64, bool)
         want_bad, words = 0, []
         for j in range(count):  # the scalar steps
