@@ -465,12 +465,19 @@ def _event_cached_run(zero_reset, static):
             wide = _avx512(context)
             wait_ptr = _lanes_ptr(context, builder, sig, args, 0, zero, fvec)
             lo_ptr = _lanes_ptr(context, builder, sig, args, 7, zero, fvec)
-            # static: argument 1 holds each lane's λ, made once per run by the caller
-            a, d, g, o, e, gn = (
+            # static: argument 1 holds each lane's λ, made once per run by the caller;
+            # moving: the rows are read in the loop, part by part (loaded once
+            # before it, LLVM copied them to the stack at every call, the loop
+            # then reading the copies)
+            a, e, gn = (
                 [_part(builder, builder.load(
                     _lanes_ptr(context, builder, sig, args, k, zero, fvec), align=8), j)
-                 for j in range(LANES // 8)] if k in (1, 5, 6) or not static else None
-                for k in (1, 2, 3, 4, 5, 6))
+                 for j in range(LANES // 8)] for k in (1, 5, 6))
+            rows = {k: builder.bitcast(_lanes_ptr(context, builder, sig, args, k, zero, fvec),
+                                       part.as_pointer()) for k in (1, 2, 3, 4, 5)}
+
+            def row_part(k, j):
+                return builder.load(builder.gep(rows[k], [i64(j)]), align=8)
             n_first = context.cast(builder, args[8], sig.args[8], types.int64)
             t_a_, inv_, lam_max_, backlog_ = (
                 context.cast(builder, args[k], sig.args[k], types.float64) for k in (9, 10, 11, 12))
@@ -488,8 +495,10 @@ def _event_cached_run(zero_reset, static):
                 # the scalar step's operations in its order (no contraction)
                 n = builder.sitofp(builder.add(n_first, k), ir.DoubleType())
                 phi = builder.fmul(builder.fsub(builder.fadd(n, half), t_a_), inv_)
-                level_now = builder.fadd(a[j], builder.fmul(d[j], _splat(builder, part, phi)))
-                qe = builder.fmul(builder.fadd(builder.fmul(g[j], level_now), o[j]), e[j])
+                level_now = builder.fadd(row_part(1, j),
+                                         builder.fmul(row_part(2, j), _splat(builder, part, phi)))
+                qe = builder.fmul(builder.fadd(builder.fmul(row_part(3, j), level_now),
+                                               row_part(4, j)), row_part(5, j))
                 return builder.select(builder.fcmp_ordered("<", cap, qe), cap, qe)
 
             k_slot = cgutils.alloca_once_value(builder, zero)
