@@ -469,10 +469,10 @@ def _event_cached_run(zero_reset, static):
             # moving: the rows are read in the loop, part by part (loaded once
             # before it, LLVM copied them to the stack at every call, the loop
             # then reading the copies)
-            a, e, gn = (
+            lam_static, e, gn = (
                 [_part(builder, builder.load(
                     _lanes_ptr(context, builder, sig, args, k, zero, fvec), align=8), j)
-                 for j in range(LANES // 8)] for k in (1, 5, 6))
+                 for j in range(LANES // 8)] if k != 1 or static else None for k in (1, 5, 6))
             rows = {k: builder.bitcast(_lanes_ptr(context, builder, sig, args, k, zero, fvec),
                                        part.as_pointer()) for k in (1, 2, 3, 4, 5)}
 
@@ -519,7 +519,7 @@ def _event_cached_run(zero_reset, static):
             builder.position_at_end(body)
             word = taken = prev = None
             for j in range(LANES // 8):  # 8 lanes at a time, in order (see the docstring)
-                lam = a[j] if static else electrons_at(k, j)
+                lam = lam_static[j] if static else electrons_at(k, j)
                 w_in = builder.load(w_slots[j])
                 if wide and prev is not None:
                     w_in = _opaque(builder, w_in, "v", after=prev)
