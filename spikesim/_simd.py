@@ -473,8 +473,9 @@ def _event_cached_run(zero_reset, static):
                 [_part(builder, builder.load(
                     _lanes_ptr(context, builder, sig, args, k, zero, fvec), align=8), j)
                  for j in range(LANES // 8)] if k != 1 or static else None for k in (1, 5, 6))
-            rows = {k: builder.bitcast(_lanes_ptr(context, builder, sig, args, k, zero, fvec),
-                                       part.as_pointer()) for k in (1, 2, 3, 4, 5)}
+            rows = None if static else {
+                k: builder.bitcast(_lanes_ptr(context, builder, sig, args, k, zero, fvec),
+                                   part.as_pointer()) for k in (1, 2, 3, 4, 5)}
 
             def row_part(k, j):
                 return builder.load(builder.gep(rows[k], [i64(j)]), align=8)
