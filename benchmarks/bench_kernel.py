@@ -33,6 +33,7 @@ import sys
 import time
 from pathlib import Path
 
+import machine
 import numba
 import numpy as np
 
@@ -302,20 +303,26 @@ def peak_rss_mib(size, n, noise_name):
         return pool.map(_stream_rss, [(size, n, noise_name)])[0]
 
 
-def main(argv=None):
+def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
-    ap.add_argument("--out", default=str(RESULTS), help="results folder")
+    ap.add_argument("--out", default=str(RESULTS),
+                    help="results folder (default benchmarks/results)")
     ap.add_argument("--rss-readouts", type=int, default=None,
                     help="readouts of the peak-RSS streaming step (default 40000; 2000 quick)")
     ap.add_argument("--size", type=int, default=None,
                     help="sensor side (default 1000; 256 quick): smaller under load")
     ap.add_argument("--ratios-only", action="store_true",
                     help="only the same-run physical / paper ratios (kernel_ratios.{json,md})")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    command = machine.command_line(__file__, argv)
     size = args.size or (256 if args.quick else 1000)
     if args.ratios_only:
-        return ratios_only(size, 256 if args.quick else 1024, Path(args.out))
+        return ratios_only(size, 256 if args.quick else 1024, Path(args.out), command)
     n_fast, n_noisy, n_phys, n_ref = (256, 64, 32, 4) if args.quick else (8192, 2048, 256, 12)
     rows = []
     for kind in ("static", "moving"):
@@ -355,7 +362,7 @@ def main(argv=None):
         "draws_only_per_s": draws,
         "same_run_ratios": ratios,
         "peak_rss_mib_streaming": {"readouts": n_long, **rss},
-        "command": "python benchmarks/bench_kernel.py" + (" --quick" if args.quick else ""),
+        "command": command,
     }
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -366,7 +373,7 @@ def main(argv=None):
     print(to_markdown(result))
 
 
-def ratios_only(size, n, out: Path) -> None:
+def ratios_only(size, n, out: Path, command: str) -> None:
     """:func:`physical_vs_paper` alone, written to ``kernel_ratios.{json,md}``."""
     load = os.getloadavg()[0]
     ratios = physical_vs_paper(size, n)
@@ -376,7 +383,7 @@ def ratios_only(size, n, out: Path) -> None:
                          "at the start",
               "size": [size, size], "cfa": "RGGB", "readouts_per_call": n,
               "same_run_ratios": ratios, "rate_sweep": sweep,
-              "command": f"python benchmarks/bench_kernel.py --ratios-only --size {size}"}
+              "command": command}
     out.mkdir(parents=True, exist_ok=True)
     (out / "kernel_ratios.json").write_text(json.dumps(result, indent=2))
     lines = [f"# Physical against paper-mode noise, {size}×{size} RGGB", "",

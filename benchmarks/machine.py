@@ -1,4 +1,5 @@
-"""The machine a benchmark ran on, as it describes itself (never fixed text).
+"""The machine a benchmark ran on, as it describes itself (never fixed text), and
+the command line it ran with, as given.
 
 Imported by the ``bench_*.py`` scripts (run as ``python benchmarks/bench_x.py``,
 so this folder is on ``sys.path``).  Import it first: the load average at
@@ -8,10 +9,13 @@ import time is the one "at the start" of the run.
 from __future__ import annotations
 
 import os
+import shlex
+import sys
+from pathlib import Path
 
 from spikejdd.runtime import describe_machine, machine_info
 
-__all__ = ["LOAD_AT_START", "load_average", "describe"]
+__all__ = ["LOAD_AT_START", "load_average", "describe", "command_line"]
 
 
 def load_average() -> float | None:
@@ -36,3 +40,11 @@ def describe() -> str:
     if LOAD_AT_START is not None and end is not None:
         text += f"; 1-min load average {LOAD_AT_START:.2f} at the start, {end:.2f} at the end"
     return text
+
+
+def command_line(script: str, argv: list[str] | None = None) -> str:
+    """``python benchmarks/SCRIPT`` and every argument as given (``argv``, default
+    ``sys.argv[1:]``), quoted for a POSIX shell where needed: the line a results
+    file records, so that running it again repeats the run."""
+    args = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    return shlex.join(["python", f"benchmarks/{Path(script).name}", *args])

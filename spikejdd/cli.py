@@ -19,18 +19,23 @@ import os
 import shlex
 import sys
 
-from spikesim.cli_guard import OneLineParser, check_cli_numbers, debug_requested, run_guarded
-from spikesim.errors import bad_value
+from spikesim.cli_guard import (
+    OneLineParser,
+    check_cli_numbers,
+    debug_requested,
+    parse_size,
+    run_guarded,
+)
+from spikesim.errors import SpikeSimValueError, bad_value
 
 __all__ = ["main", "build_parser"]
 
 
 def _size(text: str) -> tuple[int, int]:
     try:
-        h, w = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--size {text!r}: expected HxW, e.g. 64x96") from None
-    return h, w
+        return parse_size(text, "--size", "64x96")
+    except SpikeSimValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -49,8 +54,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "sjdd@path/to/best.pt (default: the standard pipelines)")
     ev.add_argument("--context", type=int, default=None,
                     help="readouts given to each method (default 41, or the most that fit "
-                         "around the GT readouts of shorter sequences)")
-    ev.add_argument("--per-sequence", type=int, default=1, help="GT frames per sequence")
+                         "around --per-sequence GT readouts of shorter sequences)")
+    ev.add_argument("--per-sequence", type=int, default=1,
+                    help="GT frames per sequence (default 1)")
     ev.add_argument("--repeats", type=int, default=3, help="timed calls per frame (median)")
     ev.add_argument("--size", type=_size, default=(64, 96), help="sweep frame size HxW")
     ev.add_argument("--frames-per-scene", type=int, default=2)

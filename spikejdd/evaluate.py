@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,6 +55,16 @@ class Frame:
     rate: float
     gt: np.ndarray  # (H, W, 3) float32
     group: dict = field(default_factory=dict)
+
+
+#: Smallest frame side the headline scores take (SSIM-gauss11's 11×11 window).
+MIN_SIDE = 11
+
+
+def _check_side(height: int, width: int, name: str) -> None:
+    if min(height, width) < MIN_SIDE:
+        raise bad_value(name, f"{height}x{width} pixels",
+                        f"frames of at least {MIN_SIDE}x{MIN_SIDE} pixels (SSIM's 11x11 window)")
 
 
 def _check_context(context: int) -> int:
@@ -101,9 +112,11 @@ def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1)
     sequence (spread evenly over those with a full ``context``-readout window).
 
     ``context=None`` takes :data:`DEFAULT_CONTEXT` (41) readouts, or per
-    sequence the largest centred window that fits around its GT readouts when
-    41 does not (a dataset of 39-readout windows gives 39); each frame records
-    the context it got.  An explicit ``context`` that fits no GT readout raises.
+    sequence the largest centred window that fits around ``per_sequence`` of
+    its GT readouts when 41 does not (a dataset of 39-readout windows gives
+    39); each frame records the context it got.  An explicit ``context`` that
+    fits no GT readout raises; one that leaves out some of the frames asked
+    for warns, with the context that would score them all.
     """
     from spikesim.io import open_dataset
 
@@ -111,16 +124,21 @@ def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1)
         _check_context(context)
     ds = open_dataset(path)
     frames = []
+    left_out, widest = 0, None
     for name in ds.names:
         seq = ds.sequence(name)
         n = seq.n_readouts
+        fits = sorted((_fit(int(g), n) for g in seq.gt_index if 0 <= g < n), reverse=True)
+        wanted = min(per_sequence, len(fits))
         length = context
         if length is None:
-            fits = [_fit(int(g), n) for g in seq.gt_index if 0 <= g < n]
-            length = min(DEFAULT_CONTEXT, max(fits, default=0))
+            length = min(DEFAULT_CONTEXT, fits[wanted - 1]) if wanted else 0
         half = length // 2
         ok = [(k, int(g)) for k, g in enumerate(seq.gt_index)
               if length and g - half >= 0 and g - half + length <= n]
+        if len(ok) < wanted:
+            left_out += wanted - len(ok)
+            widest = min(fits[wanted - 1], widest or fits[wanted - 1])
         if not ok:
             continue
         pick = np.unique(np.linspace(0, len(ok) - 1, min(per_sequence, len(ok))).round())
@@ -134,6 +152,10 @@ def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1)
             seq.close()
     if not frames:
         raise bad_value("context", context, f"a window that fits some GT readout in {path}")
+    if left_out:
+        warnings.warn(f"context={context} leaves out {left_out} of the GT frames asked for "
+                      "(their windows would cross a sequence's end); a context of at most "
+                      f"{widest} readouts scores them all", UserWarning, stacklevel=2)
     return frames
 
 
@@ -185,6 +207,8 @@ def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: boo
         raise bad_value("repeats", repeats, "an integer >= 1")
     if not frames:
         raise bad_value("frames", frames, "at least one frame")
+    for f in frames:
+        _check_side(*f.gt.shape[:2], name=f"frames ({f.sequence})")
     fns = {m: get_method(m) for m in methods}  # validates every name up front
     opts = {} if device is None else {"device": device}
     if ensemble is not None:
@@ -262,6 +286,7 @@ def sweep(methods: list[str], size=(64, 96), context: int = 41, frames_per_scene
     import spikesim as ss
     from spikesim.scenes.procedural import procedural
 
+    _check_side(*size, name="size")
     rng = np.random.default_rng(seed)
     frames = []
     half = context // 2

@@ -372,6 +372,10 @@ def call_method(method: Method, spikes, cfa, center, **options) -> np.ndarray:
     if out.dtype.kind not in "fiu":
         raise SpikeSimTypeError(f"method {method.name!r} returned dtype {out.dtype}, "
                                 "expected float linear RGB")
+    bad = out.size - int(np.count_nonzero(np.isfinite(out)))
+    if bad:
+        raise SpikeSimValueError(f"method {method.name!r} returned {bad} non-finite values "
+                                 "(NaN or inf), expected finite linear RGB")
     return out
 
 

@@ -33,10 +33,10 @@ import sys
 from collections.abc import Callable
 
 from spikesim._validate import check_int, check_real, is_int, is_real
-from spikesim.errors import SpikeSimError
+from spikesim.errors import SpikeSimError, bad_value
 
 __all__ = ["MAX_READOUTS", "check_cli_numbers", "OneLineParser", "Terminated", "debug_requested",
-           "install_signal_handlers", "run_guarded"]
+           "install_signal_handlers", "parse_size", "run_guarded"]
 
 EXIT_ERROR = 1
 EXIT_BUG = 70
@@ -214,3 +214,17 @@ def check_cli_numbers(args) -> None:
         value = getattr(args, dest, None)
         if is_real(value):
             check_real("--" + dest.replace("_", "-"), value, low, high, low_open=True, unit=unit)
+
+
+def parse_size(text: str, name: str = "--size", example: str = "256x256") -> tuple[int, int]:
+    """``HxW`` of a command line (``"256x96"``) as ``(height, width)``, each side an
+    integer within the bounds of ``--height``/``--width``; errors name the option ``name``."""
+    low, high, unit = _CLI_INTS["size"]
+    try:
+        h, w = (int(v) for v in str(text).lower().split("x"))
+    except ValueError:
+        h = w = low - 1
+    if not (low <= h <= high and low <= w <= high):
+        raise bad_value(name, text, f"HxW, both sides integers in [{low}, {high}] ({unit}), "
+                                    f"e.g. {example}")
+    return h, w

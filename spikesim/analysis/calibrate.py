@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import spikesim as ss
-from spikesim.analysis.calibrate_fit import SATURATED_RATE, fit_parameters
+from spikesim.analysis.calibrate_fit import MIN_FLAT_SPIKES, SATURATED_RATE, fit_parameters
 from spikesim.analysis.calibration_config import (
     DEFAULT_MISMATCH_SPLIT,
     MIN_READOUTS,
@@ -73,6 +73,19 @@ def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
         raise bad_value("dark_mask/flat_masks", None, "masks, or detect=True")
     first = pixel_counts(cap, 0, n // 2, progress=progress) / (n // 2)
     second = (rate * n - first * (n // 2)) / (n - n // 2)
+    if dark is not None and not flats and cfg.detect:  # the dark region given, flats found
+        _, found = detect_regions(rate, n, min_pixels=cfg.min_pixels,
+                                  halves=np.stack([first, second]))
+        flats = [f & ~dark for f in found if (f & ~dark).sum() >= cfg.min_pixels]
+        flats = _bright_enough(flats, rate, n, notes)
+        if not flats:
+            raise bad_value("flat_masks", None,
+                            "flat masks: none was given and no flat region was found outside "
+                            f"dark_mask (a uniform, static region of >= {cfg.min_pixels} pixels "
+                            f"and >= {MIN_FLAT_SPIKES} spikes per pixel below saturation)")
+        notes.append(f"dark region from dark_mask; {len(flats)} flat region(s) detected "
+                     "automatically")
+        return dark, flats, True
     if dark is not None or flats:
         change = (second - first) * (n / 2)
         for i, f in enumerate(flats):
@@ -85,11 +98,28 @@ def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
         return dark, flats, False
     dark, flats = detect_regions(rate, n, min_pixels=cfg.min_pixels,
                                  halves=np.stack([first, second]))
+    flats = _bright_enough(flats, rate, n, notes)
     if not flats:
         raise bad_value("capture", "no flat region found",
                         f"a capture with a uniform, static region of >= {cfg.min_pixels} pixels "
-                        "below saturation (the gain cannot be fitted without one), or flat_masks")
+                        f"and >= {MIN_FLAT_SPIKES} spikes per pixel below saturation (the gain "
+                        "cannot be fitted without one; a longer capture helps), or flat_masks")
     return dark, flats, True
+
+
+def _bright_enough(flats, rate, n, notes):
+    """The detected flat regions with at least :data:`MIN_FLAT_SPIKES` spikes per
+    pixel (the fit needs them); each one dropped gets a note."""
+    kept = []
+    for f in flats:
+        spikes = min(float(np.mean(rate[f])), float(np.median(rate[f]))) * n
+        if spikes >= MIN_FLAT_SPIKES:
+            kept.append(f)
+        else:
+            notes.append(f"a detected flat region of {int(f.sum())} pixels was left out: "
+                         f"{spikes:.3g} spikes per pixel, fewer than the fit's "
+                         f"{MIN_FLAT_SPIKES} (a longer capture would keep it)")
+    return kept
 
 
 def _levels(flat_levels, flats):
@@ -102,7 +132,33 @@ def _levels(flat_levels, flats):
     return lv
 
 
-def _sensor(cap, params, notes):
+#: Reset modes the fit's rate and interval model describes (:mod:`calibrate_fit`).
+CALIBRATED_RESETS = ("modulo", "subtract")
+
+
+def _reset_mode(cap, reset, notes) -> str:
+    """The capture's reset mode: ``reset`` when given, else the one its metadata
+    records (a spikesim simulation), else modulo (stated in the notes).  Zero
+    reset is refused: it discards each cycle's residual charge, so its rate is
+    not linear in the charge and its intervals follow another law."""
+    name = "reset"
+    if reset is None:
+        recorded = cap.meta.get("sensor")
+        reset = recorded.get("reset") if isinstance(recorded, dict) else None
+        name = "the capture's reset mode (its metadata)"
+    if reset is None:
+        notes.append("reset mode unknown: modulo assumed (modulo and subtract reset fire "
+                     "alike below one threshold per readout); pass reset= if it is known")
+        return "modulo"
+    if reset not in CALIBRATED_RESETS:
+        raise bad_value(name, reset,
+                        "'modulo' or 'subtract': the calibration's rate and interval model has "
+                        "no zero-reset form (a zero reset discards each cycle's residual "
+                        "charge)" if reset == "zero" else "'modulo' or 'subtract'")
+    return reset
+
+
+def _sensor(cap, params, notes, reset):
     for k, hi in _LIMITS.items():
         if params[k] > hi:
             notes.append(f"{k} = {params[k]:.4g} clipped to the model's limit {hi}")
@@ -112,15 +168,15 @@ def _sensor(cap, params, notes):
         notes.append("clock unknown: the sensor's clock_hz is set to 20 kHz (rates per "
                      "readout are what was fitted)")
     return ss.Sensor(height=cap.height, width=cap.width, cfa=cap.cfa,
-                     clock_hz=cap.clock_hz or 20_000.0,
+                     clock_hz=cap.clock_hz or 20_000.0, reset=reset,
                      full_scale_rate=params["full_scale_rate"], noise=noise)
 
 
 def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
               config: CalibrationConfig | None = None, cfa: str | None = None,
               clock_hz: float | None = None, height: int | None = None,
-              width: int | None = None, flip: bool = True, progress: bool = False,
-              **options) -> CalibrationResult:
+              width: int | None = None, flip: bool = True, reset: str | None = None,
+              progress: bool = False, **options) -> CalibrationResult:
     """Fit a :class:`spikesim.Sensor` with :class:`~spikesim.noise.PhysicalNoise` to a capture.
 
     Parameters
@@ -129,6 +185,10 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
         The spike capture, at least :data:`MIN_READOUTS` (200) readouts (a
         ``.dat`` needs ``height``/``width``; ``flip`` as in
         :func:`spikesim.io.read_dat`; ``cfa``/``clock_hz`` override the source).
+    reset : {"modulo", "subtract"}, optional
+        The capture's reset mode, kept in the fitted sensor; by default the
+        one a spikesim capture records, else modulo (stated in the notes).
+        Zero-reset captures are refused: the fit's model does not describe them.
     dark_mask : (H, W) bool, optional
         Pixels that saw no light.
     flat_masks : list of (H, W) bool, or (H, W) int labels (0 = none), optional
@@ -150,15 +210,16 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
     if n < MIN_READOUTS:
         raise bad_value("capture length", f"{n} readouts",
                         f"at least {MIN_READOUTS} readouts for calibration")
-    rate = pixel_counts(cap, 0, n, progress=progress) / n
     region_notes: list[str] = []
+    reset = _reset_mode(cap, reset, region_notes)
+    rate = pixel_counts(cap, 0, n, progress=progress) / n
     dark, flats, detected = _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress,
                                      region_notes)
     levels = _levels(flat_levels, flats)
     mom = pixel_intervals(cap, 0, n, progress=progress)
     params, diag, lv, hot = fit_parameters(rate, mom, n, dark, flats, levels, cfg)
     notes = region_notes + list(diag.pop("notes"))
-    sensor = _sensor(cap, params, notes)
+    sensor = _sensor(cap, params, notes, reset)
     fit = None
     if cfg.check:
         from spikesim.analysis.fitcheck import compare_resimulations, default_sensor_like

@@ -67,10 +67,13 @@ from spikesim.analysis.temporal_fit import fit_temporal
 from spikesim.errors import bad_value
 
 __all__ = ["fit_parameters", "find_hot_pixels", "fit_dark", "flat_samples", "fit_response",
-           "response_spread", "unmix", "SATURATED_RATE", "DARK_FALLBACK", "DARK_CV2_SE"]
+           "response_spread", "unmix", "SATURATED_RATE", "MIN_FLAT_SPIKES", "DARK_FALLBACK",
+           "DARK_CV2_SE"]
 
 #: Regions whose median rate is at least this are saturated (no gain information).
 SATURATED_RATE = 0.95
+#: Fewest spikes per pixel a flat region needs over the capture (its mean rate's precision).
+MIN_FLAT_SPIKES = 10
 #: Dark-current parameters held at the package defaults when no dark region exists.
 DARK_FALLBACK = {k: getattr(ss.noise.PhysicalNoise(), k) for k in (
     "dark_current_rel", "dark_current_spread", "hot_pixel_fraction", "hot_pixel_dark_rel")}
@@ -168,9 +171,10 @@ def _check_flat_means(means, flats, rate, t):
             raise bad_value(f"flat region {i}", f"median rate {float(np.median(rate[f])):.4g}",
                             f"a region below saturation (median rate < {SATURATED_RATE} spikes "
                             "per readout): a saturated region carries no gain information")
-        if mu * t < 10:
+        if mu * t < MIN_FLAT_SPIKES:
             raise bad_value(f"flat region {i}", f"{mu * t:.3g} spikes per pixel",
-                            "at least 10 spikes per pixel (a longer capture or brighter region)")
+                            f"at least {MIN_FLAT_SPIKES} spikes per pixel (a longer capture or "
+                            "brighter region)")
 
 
 def fit_response(means, levels, b_mean: float, dark_known: bool, notes: list):
@@ -264,7 +268,8 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config):
     ``full_scale_rate``.
     """
     if not flats:
-        raise bad_value("flat_masks", None, "at least one flat region (none given or detected)")
+        raise bad_value("flat_masks", None, "at least one flat region (none given or detected; "
+                        "a dark_mask alone needs detect=True to find the flat regions)")
     t = n_readouts
     notes: list[str] = []
     hot = find_hot_pixels(rate, dark, t)

@@ -44,13 +44,22 @@ from spikesim.errors import SpikeSimTypeError, bad_value
 __all__ = ["check_regions", "detect_regions", "as_mask", "motion_score"]
 
 
-def as_mask(mask, shape: tuple[int, int], name: str) -> np.ndarray:
-    """Validate one (H, W) mask (bool or 0/1) and return it as bool."""
+#: What the flat masks may be, for the errors that name it.
+FLAT_FORMS = "an (H, W) integer label image (0 = none) or boolean (H, W) or (K, H, W) masks"
+
+
+def as_mask(mask, shape: tuple[int, int], name: str,
+            forms: str = "a boolean (H, W) mask") -> np.ndarray:
+    """Validate one (H, W) mask (bool, or integers 0/1) and return it as bool;
+    ``forms`` says what was expected in the errors."""
     arr = np.asarray(mask)
     if arr.dtype != np.bool_ and arr.dtype.kind not in "iu":
-        raise SpikeSimTypeError(f"{name} must be a boolean (H, W) mask, got dtype {arr.dtype}")
+        raise SpikeSimTypeError(f"{name} must be {forms}, got dtype {arr.dtype}")
     if arr.shape != tuple(shape):
         raise bad_value(f"{name}.shape", arr.shape, f"the capture's (H, W) = {tuple(shape)}")
+    if arr.dtype != np.bool_ and arr.size and (arr.min() < 0 or arr.max() > 1):
+        raise bad_value(name, f"integers from {arr.min()} to {arr.max()}",
+                        f"{forms}, with integers 0 and 1 at most")
     return arr.astype(bool)
 
 
@@ -72,10 +81,10 @@ def check_regions(dark_mask, flat_masks, shape) -> tuple[np.ndarray | None, list
                 raise bad_value("flat_masks", "a label image without labels > 0",
                                 "labels 1..K marking the flat regions (0 = none)")
         elif arr is not None and arr.ndim == 2:  # one boolean mask
-            flats = [as_mask(arr, shape, "flat_masks")]
+            flats = [as_mask(arr, shape, "flat_masks", FLAT_FORMS)]
         else:
             seq = list(flat_masks) if arr is None else list(arr)
-            flats = [as_mask(m, shape, f"flat_masks[{i}]") for i, m in enumerate(seq)]
+            flats = [as_mask(m, shape, f"flat_masks[{i}]", FLAT_FORMS) for i, m in enumerate(seq)]
         if not flats:
             raise bad_value("flat_masks", "an empty list", "one or more masks, or None")
         for i, m in enumerate(flats):

@@ -26,11 +26,9 @@ def _floats(text: str | None, name: str):
 
 
 def _size(text: str, name: str = "--size") -> tuple[int, int]:
-    try:
-        h, w = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise bad_value(name, text, "HxW, e.g. 32x32") from None
-    return h, w
+    from spikesim.cli_guard import parse_size
+
+    return parse_size(text, name, example="32x32")
 
 
 def _sensor(args):
@@ -120,6 +118,9 @@ def register(subparsers) -> None:
                    help="radiance of each flat region, comma-separated (1 = full scale)")
     s.add_argument("--no-detect", dest="detect", action="store_false",
                    help="do not detect regions automatically when no mask is given")
+    s.add_argument("--reset", choices=("modulo", "subtract"), default=None,
+                   help="the capture's reset mode (default: what a spikesim capture records, "
+                        "else modulo); zero-reset captures cannot be calibrated")
     s.add_argument("--electrons", type=float, default=None,
                    help="known electrons per threshold (then σ_t is fitted)")
     s.add_argument("--sigma-t", type=float, default=0.006,
@@ -221,8 +222,9 @@ def _load_npy(path: str | None, name: str):
         raise SpikeSimFileError(f"{name}: no such file {path!r}")
     try:
         return np.load(p, allow_pickle=False)
-    except ValueError as exc:
-        raise bad_value(name, path, f"a .npy array file ({exc})") from None
+    except (ValueError, OSError, EOFError):  # (numpy's advice on pickles does not apply)
+        raise bad_value(name, path, "a .npy file of a numeric array (numpy.save of a mask or "
+                        "label image)") from None
 
 
 def _run_calibrate(args) -> int:
@@ -239,7 +241,7 @@ def _run_calibrate(args) -> int:
         mismatch_split=DEFAULT_MISMATCH_SPLIT if args.mismatch_split is None
         else args.mismatch_split,
         fit_charge_noise=args.charge_noise, max_readouts=args.max_readouts, check=args.check,
-        check_seed=args.seed, progress=args.progress)
+        check_seed=args.seed, reset=args.reset, progress=args.progress)
     paths = write_report(res, args.out)
     sensor_path = Path(args.out) / "sensor.json"
     sensor_path.write_text(res.sensor.to_json() + "\n")

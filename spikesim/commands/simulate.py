@@ -31,6 +31,8 @@ def register(sub) -> None:
 
 
 def parse_overrides(items: list[str]) -> dict:
+    """``--set FIELD=VALUE`` items as a dict: VALUE is JSON, or else a plain string; a
+    VALUE that starts like a JSON object, list or string must be valid JSON."""
     out = {}
     for item in items:
         if "=" not in item:
@@ -38,7 +40,12 @@ def parse_overrides(items: list[str]) -> dict:
         key, value = item.split("=", 1)
         try:
             out[key] = json.loads(value)
-        except json.JSONDecodeError:
+        except json.JSONDecodeError as exc:
+            if value.lstrip()[:1] in ('{', '[', '"'):
+                raise bad_value(
+                    f"--set {key}", value,
+                    f"valid JSON; it is not (character {exc.pos + 1}: {exc.msg}), "
+                    'e.g. --set \'noise={"type":"paper","sigma_g":5}\'') from None
             out[key] = value
     return out
 
@@ -47,6 +54,7 @@ def run(args) -> int:
     import spikesim as ss
     from spikesim import io
     from spikesim._validate import check_int, check_real
+    from spikesim.cli_guard import parse_size
     from spikesim.workload import check_free_space, require_reasonable_key_frames
 
     check_int("--readouts", args.readouts, 1, 2**53, unit="readouts")
@@ -55,10 +63,7 @@ def run(args) -> int:
         check_real("--fps", args.fps, 0, low_open=True, unit="video frames per second")
     overrides = parse_overrides(args.set)
     if args.size:
-        try:
-            h, w = (int(v) for v in args.size.lower().split("x"))
-        except ValueError:
-            raise bad_value("--size", args.size, "HxW, e.g. 256x256") from None
+        h, w = parse_size(args.size)
         overrides.update(height=h, width=w)
     if "cfa" in overrides and overrides["cfa"] in ("mono", "none"):
         overrides["cfa"] = None

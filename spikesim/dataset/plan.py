@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from spikesim.dataset.manifest import Manifest, SourceSpec
+from spikesim.errors import bad_value
 from spikesim.sensor import Sensor
 
 __all__ = ["SequenceTask", "plan_tasks", "derive_seed", "DuplicateClipWarning"]
@@ -177,7 +178,22 @@ def plan_tasks(manifest: Manifest) -> list[SequenceTask]:
                 clean_twin=manifest.clean_twin, manifest=manifest.name,
             ))
     _warn_duplicate_clips(tasks)
-    ids = [t.file for t in tasks]
-    if len(set(ids)) != len(ids):  # pragma: no cover - ids embed the source index
-        raise RuntimeError("duplicate sequence ids in the plan")
+    _check_unique_ids(tasks)
     return tasks
+
+
+def _check_unique_ids(tasks: list[SequenceTask]) -> None:
+    """Refuse two sequences of one file name: videos whose names differ only in
+    case or punctuation (ids are :func:`_slug` of the name, which stays as it is
+    so that ids, seeds and resumes of existing datasets do not change)."""
+    first: dict[str, SequenceTask] = {}
+    for t in tasks:
+        other = first.setdefault(t.file, t)
+        if other is t:
+            continue
+        names = [x.scene.get("sequence", x.id) for x in (other, t)]
+        src = int(t.id.split("-", 1)[0])
+        raise bad_value(f"sources[{src}]", f"videos {names[0]!r} and {names[1]!r}",
+                        f"video names that stay distinct as sequence ids: both become "
+                        f"{t.id!r} (ids are lower-case, other characters than a-z and 0-9 "
+                        "made '-'); rename one of the two")

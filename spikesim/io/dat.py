@@ -84,14 +84,15 @@ def guess_dat_shape(n_bytes: int, path: str | os.PathLike = "") -> tuple[int, in
         raise SpikeSimFormatError(
             f"cannot guess the frame size of {str(path) or 'the .dat file'} ({n_bytes} bytes): "
             f"it is not a whole number of frames of any known sensor size ({known}, W x H); "
-            "pass height and width"
+            "pass height and width (--height and --width on the command line)"
         )
     h, w, desc = fits[0]
     n = n_bytes // dat_frame_bytes(h, w)
     msg = f"assumed {w}x{h} (W x H, {desc}): {n} readouts"
     if len(fits) > 1:
         others = ", ".join(f"{ww}x{hh}" for hh, ww, _ in fits[1:])
-        msg += f"; the size also fits {others}: pass height and width to choose"
+        msg += (f"; the size also fits {others}: pass height and width (--height and --width "
+                "on the command line) to choose")
     return h, w, msg
 
 
@@ -199,7 +200,7 @@ class DatFile:
             if partial == "error":
                 raise SpikeSimFormatError(
                     what + "; check height/width, or pass partial='drop' to ignore the "
-                    "partial frame"
+                    "partial frame (--height/--width, --partial drop on the command line)"
                 )
             warnings.warn(what + "; the partial frame is ignored", UserWarning, stacklevel=2)
         self._layout = _Layout(height, width, int(head_columns), n, fb)
@@ -427,10 +428,19 @@ def write_dat(path: str | os.PathLike, spikes, flip: bool = True, overwrite: boo
 
     Parameters
     ----------
-    spikes : (T, H, W) array of 0/1, or an object with ``packed`` and ``width``
-        (a ``SpikeStream``), whose packed bits are written without unpacking.
+    spikes : (T, H, W) array of 0/1, a ``SpikeStream``, or a ``simulate_chunks`` run
+        An array is packed and written; a ``SpikeStream`` (an object with
+        ``packed`` and ``width``) has its packed bits written without
+        unpacking; a run (``ss.simulate_chunks(...)``, an iterable of chunks
+        with a ``meta`` dict) is simulated and written chunk by chunk, so
+        memory stays bounded, with the same bytes as writing
+        ``ss.simulate(...)`` of the same call.  Ground truth and the clean
+        twin are not stored (the format has no place for them).
     flip : bool
         Store upside down (PKU convention, default True).
+
+    The file appears under ``path`` only once complete: an error part-way
+    (in the simulation too) leaves no file.
     """
     if hasattr(spikes, "packed") and hasattr(spikes, "width"):
         packed = np.asarray(spikes.packed)
@@ -438,9 +448,24 @@ def write_dat(path: str | os.PathLike, spikes, flip: bool = True, overwrite: boo
         with DatWriter(path, height, width, flip=flip, overwrite=overwrite) as w:
             w.write_packed(packed)
         return w.n_readouts
+    meta = getattr(spikes, "meta", None)
+    if isinstance(meta, dict) and hasattr(spikes, "__iter__"):
+        return _write_run(path, spikes, meta, flip, overwrite)
     frames = _as_frames(spikes)
     if frames.shape[1] < 1 or frames.shape[2] < 1:
         raise bad_value("spikes.shape", frames.shape, "H >= 1 and W >= 1")
     with DatWriter(path, frames.shape[1], frames.shape[2], flip=flip, overwrite=overwrite) as w:
         w.write(frames)
+    return w.n_readouts
+
+
+def _write_run(path: str | os.PathLike, run, meta: dict, flip: bool, overwrite: bool) -> int:
+    """Stream the chunks of a ``simulate_chunks`` run into one ``.dat`` file."""
+    with DatWriter(path, meta.get("height"), meta.get("width"), flip=flip,
+                   overwrite=overwrite) as w:
+        for chunk in run:
+            start = getattr(chunk, "start", w.n_readouts)
+            if start != w.n_readouts:
+                raise bad_value("chunk.start", start, f"{w.n_readouts} (chunks must be contiguous)")
+            w.write_packed(chunk.packed)
     return w.n_readouts

@@ -21,14 +21,25 @@ def _check_values(arr: np.ndarray, name: str) -> None:
         raise bad_value(name, f"minimum {low}", "non-negative linear radiance")
 
 
+#: Largest float32 radiance: finite values above it (float64 input) are stored as it.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
 def _checked_float32(arr: np.ndarray, name: str) -> np.ndarray:
     """``arr`` (of a valid rank) as C-contiguous float32 once its size and values
-    are checked."""
+    are checked, in its own precision: a finite float64 value beyond float32's
+    range (about 3.4e38) becomes :data:`FLOAT32_MAX`, which saturates the sensor
+    as it would have (a float32 cast would have made it inf)."""
     if arr.shape[0] < 1 or arr.shape[1] < 1:
         raise bad_value(f"{name}.shape", arr.shape, "H >= 1 and W >= 1")
-    arr = np.ascontiguousarray(arr, dtype=np.float32)
+    if arr.dtype == np.float32:
+        arr = np.ascontiguousarray(arr)
+        _check_values(arr, name)
+        return arr
     _check_values(arr, name)
-    return arr
+    if arr.dtype.kind == "f" and arr.dtype.itemsize > 4:
+        arr = np.minimum(arr, FLOAT32_MAX)
+    return np.ascontiguousarray(arr, dtype=np.float32)
 
 
 def _check_dtype(arr: np.ndarray, name: str) -> None:
@@ -53,7 +64,8 @@ def validate_radiance(image: np.ndarray, name: str = "image") -> np.ndarray:
     Accepts (H, W) (grey: copied to the three channels) or (H, W, 3), any real
     dtype.  Values are linear light, relative units; they must be finite and
     non-negative (values above 1 are allowed: the sensor saturates per its
-    reset mode).
+    reset mode; float64 values beyond float32's range are stored as
+    :data:`FLOAT32_MAX`, which saturates all the same).
     """
     arr = np.asarray(image)
     _check_dtype(arr, name)

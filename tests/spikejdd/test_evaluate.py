@@ -61,3 +61,43 @@ def test_group_columns_sort_numbers_by_value():
 
     assert sorted(["GN0", "GN10", "GN15", "GN5", "GPN-rand"], key=_natural) == [
         "GN0", "GN5", "GN10", "GN15", "GPN-rand"]
+
+
+@pytest.mark.parametrize("size", ["0x64", "64x0", "ax8"])
+def test_cli_bad_sweep_size_names_the_option(size, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["evaluate", "--sweep", "--size", size])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"--size={size!r} is invalid: expected HxW" in err and "height=" not in err
+
+
+def test_frames_below_the_ssim_window_are_refused_up_front():
+    """A sweep or run on frames under 11×11 pixels fails before any simulation or
+    warm-up, naming the size, instead of in the SSIM after the work."""
+    from spikejdd.evaluate import Frame, run, sweep
+
+    with pytest.raises(SpikeSimValueError, match=r"size='4x16 pixels'.*at least 11x11"):
+        sweep(["tfp+bilinear"], size=(4, 16), progress=False)
+    tiny = Frame("tiny", 5, np.zeros((9, 8, 8), np.uint8), 4, "RGGB", 0.5,
+                 np.zeros((8, 8, 3), np.float32))
+    with pytest.raises(SpikeSimValueError, match=r"frames \(tiny\)='8x8 pixels'"):
+        run([tiny], ["tfp+bilinear"], progress=False)
+
+
+def test_per_sequence_frames_of_back_to_back_windows(tmp_path):
+    """A dataset sequence of three 39-readout windows (GT at 19, 58, 97 of 117):
+    by default every asked-for frame is scored with the widest context that fits
+    them all (39); an explicit 41 scores the middle one and warns with the count
+    and the context that would score them all."""
+    sensor = ss.Sensor(height=16, width=24, cfa="RGGB")
+    scene = ss.scenes.Static(np.full((16, 24), 0.4, np.float32))
+    write_h5(tmp_path / "seq.h5", ss.simulate(scene, sensor, 117, gt_readouts=[19, 58, 97]))
+    frames = evaluate.frames_from_dataset(tmp_path, per_sequence=3)
+    assert [(f.readout, f.spikes.shape[0], f.center) for f in frames] == [
+        (19, 39, 19), (58, 39, 19), (97, 39, 19)]
+    assert [f.readout for f in evaluate.frames_from_dataset(tmp_path)] == [58]  # 41 fits it
+    with pytest.warns(UserWarning, match="context=41 leaves out 2 of the GT frames asked for.*"
+                                         "at most 39 readouts"):
+        frames = evaluate.frames_from_dataset(tmp_path, context=41, per_sequence=3)
+    assert [f.readout for f in frames] == [58]

@@ -60,6 +60,11 @@ def test_third_party_method_registers_and_validates(stream):
         sj.register_method("test-grey", lambda *a, **k: np.zeros((2, 2, 3)), overwrite=True)
         with pytest.raises(SpikeSimValueError, match="returned shape"):
             sj.reconstruct(s.unpack(), s.cfa, "test-grey")
+        sj.register_method("test-grey", lambda sp, *a, **k: np.full(sp.shape[1:] + (3,), np.nan),
+                           overwrite=True)
+        with pytest.raises(SpikeSimValueError,
+                           match=r"method 'test-grey' returned \d+ non-finite values"):
+            sj.reconstruct(s.unpack(), s.cfa, "test-grey")
     finally:
         sj.unregister_method("test-grey")
     with pytest.raises(SpikeSimValueError, match="lower-case"):

@@ -113,3 +113,14 @@ def test_ideal_reference_rejects_charge_loss():
     sensor = ss.Sensor(height=2, width=8, cfa=None, noise=_only_loss(0.1))
     with pytest.raises(SpikeSimValueError, match="reset_charge_loss"):
         ss.ideal_spike_times(ss.scenes.Static(np.full((2, 8), 0.5, np.float32)), sensor, 10)
+
+
+def test_the_model_doc_example_agrees_with_its_theory(capsys):
+    """docs/model.md's charge-loss example prints 1/rate next to 1/q + f: they agree."""
+    from tests.docs.test_code_blocks import ROOT, parse_blocks
+
+    blocks = parse_blocks((ROOT / "docs" / "model.md").read_text(encoding="utf-8"))
+    block = next(b for b in blocks if "isi_mean_theory" in b.code)
+    exec(compile(block.code, "docs/model.md", "exec"), {"__name__": "__doc_example__"})
+    simulated, predicted = map(float, capsys.readouterr().out.split()[-2:])
+    assert simulated == pytest.approx(predicted, rel=2e-3)

@@ -105,3 +105,24 @@ def test_subtract_backlog_saturates_without_overflow():
     assert st.unpack().all()
     q = 0.6 * float(np.float32(1e17))
     assert 1000 * q > 2**63 > _kernels.WHOLE_MAX + _kernels.Q_WHOLE_MAX + 1
+
+
+@pytest.mark.parametrize("level", [1e39, 1e300, float(np.finfo(np.float64).max)])
+def test_float64_radiance_beyond_float32_saturates(level):
+    """A finite float64 radiance beyond float32's range is stored as float32's
+    largest value (no overflow warning, no 'contains inf' error) and fires at
+    every readout like any saturating input."""
+    import warnings
+
+    from spikesim.scenes.static import FLOAT32_MAX, validate_radiance
+
+    image = np.full((2, 70), level)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        checked = validate_radiance(image)
+        st = ss.simulate(ss.scenes.Static(image), ss.Sensor(height=2, width=70, cfa=None),
+                         40, seed=1)
+    assert checked.dtype == np.float32 and (checked == np.float32(FLOAT32_MAX)).all()
+    assert st.unpack().all()
+    with pytest.raises(ss.errors.SpikeSimValueError, match="contains inf"):
+        validate_radiance(np.full((2, 70), np.inf))

@@ -156,6 +156,74 @@ def test_bad_inputs(capture):
         calibrate(noise, check=False)
 
 
+def _bands_capture(reset, n_readouts, dim=0.0, seed=3):
+    """A 64 × 128 mono chip with a dark (or ``dim``) band and flat bands at
+    0.1, 0.25 and 0.5, non-default noise, ``reset`` mode: (stream, image)."""
+    noise = ss.noise.PhysicalNoise(threshold_mismatch=0.07, prnu=0.09, dark_current_rel=0.012,
+                                   electrons_per_threshold=300.0, fpn_seed=5)
+    img = np.full((64, 128), dim, np.float32)
+    for k, level in enumerate((0.1, 0.25, 0.5), 1):
+        img[:, 32 * k: 32 * k + 32] = level
+    sensor = ss.Sensor(height=64, width=128, cfa=None, noise=noise, full_scale_rate=0.4,
+                       reset=reset)
+    return ss.simulate(ss.scenes.Static(img), sensor, n_readouts, seed=seed), img
+
+
+def test_reset_mode_is_kept_and_zero_reset_refused():
+    """The fitted sensor keeps the capture's reset mode (recorded, given or
+    modulo with a note); a zero-reset capture, which the fit's model does not
+    describe, is refused instead of fitted wrongly."""
+    stream, img = _bands_capture("subtract", 300)
+    masks = dict(dark_mask=img == 0, flat_masks=[img == v for v in (0.1, 0.25, 0.5)],
+                 flat_levels=[0.1, 0.25, 0.5], check=False)
+    assert calibrate(stream, **masks).sensor.reset == "subtract"
+    unknown = calibrate(stream.unpack(), **masks)
+    assert unknown.sensor.reset == "modulo"
+    assert any("reset mode unknown" in n for n in unknown.notes)
+    assert calibrate(stream.unpack(), reset="subtract", **masks).sensor.reset == "subtract"
+    zero, _ = _bands_capture("zero", 300)
+    with pytest.raises(SpikeSimValueError, match="reset mode.*'zero'.*no zero-reset form"):
+        calibrate(zero, **masks)
+    with pytest.raises(SpikeSimValueError, match="reset='zero'.*modulo' or 'subtract"):
+        calibrate(zero.unpack(), reset="zero", **masks)
+
+
+def test_detected_regions_too_dim_are_left_out():
+    """Without masks, a detected flat region with fewer than 10 spikes per pixel
+    is left out with a note (it used to abort the calibration), also at the
+    minimum capture length of 200 readouts."""
+    for stream in (_bands_capture("modulo", 250, dim=0.05)[0],
+                   _bands_capture("modulo", 300)[0].unpack()[:200]):
+        res = calibrate(stream, check=False)
+        assert 2 <= len(res.flat_masks) <= 3
+        assert any("left out" in n and "fewer than the fit's 10" in n for n in res.notes)
+
+
+def test_dark_mask_alone_detects_the_flat_regions():
+    stream, img = _bands_capture("modulo", 300)
+    res = calibrate(stream, dark_mask=img == 0, check=False)
+    assert np.array_equal(res.dark_mask, img == 0)
+    assert len(res.flat_masks) == 3
+    for found, level in zip(res.flat_masks, (0.1, 0.25, 0.5), strict=True):
+        assert not np.any(found & (img != level))
+    assert any("dark region from dark_mask" in n for n in res.notes)
+    with pytest.raises(SpikeSimValueError, match="flat_masks.*detect=True"):
+        calibrate(stream, dark_mask=img == 0, detect=False, check=False)
+
+
+def test_mask_types_are_checked():
+    stream, img = _bands_capture("modulo", 300)
+    labels = np.select([img == v for v in (0.1, 0.25, 0.5)], [1, 2, 3], 0).astype(np.int32)
+    with pytest.raises(SpikeSimValueError, match="dark_mask='integers from 0 to 3'.*boolean"):
+        calibrate(stream, dark_mask=labels, check=False)
+    with pytest.raises(SpikeSimTypeError, match="flat_masks must be an .H, W. integer label "
+                                                "image .0 = none. or boolean"):
+        calibrate(stream, flat_masks=labels.astype(float), check=False)
+    res = calibrate(stream, dark_mask=(img == 0).astype(np.uint8), flat_masks=labels,
+                    check=False)  # 0/1 integers are a mask
+    assert res.dark_mask.sum() == 64 * 32
+
+
 @pytest.mark.slow
 def test_calibration_accuracy_all_settings():
     res = calibration_accuracy(seed=0)

@@ -46,6 +46,8 @@ def test_sensor_json_and_overrides(tmp_path):
 def test_bad_arguments_exit_with_clear_errors(tmp_path, capsys):
     assert main(["analyze", "transfer", "--out", str(tmp_path), "--size", "big"]) == 1
     assert "--size='big'" in capsys.readouterr().err
+    assert main(["analyze", "isi", "--out", str(tmp_path), "--size", "0x8"]) == 1
+    assert "--size='0x8' is invalid: expected HxW" in capsys.readouterr().err
     assert main(["analyze", "isi", "--out", str(tmp_path), "--levels", "0.1,x"]) == 1
     assert "--levels" in capsys.readouterr().err
     assert main(["analyze", "calibrate", str(tmp_path / "missing.dat"), "--height", "8",

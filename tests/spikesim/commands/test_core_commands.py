@@ -58,3 +58,26 @@ def test_command_errors_are_one_line_messages(tmp_path, capsys):
     assert "preset" in err and "Traceback" not in err
     assert main(["simulate", "flat", "--readouts", "5", "--out", str(tmp_path / "x.txt")]) == 1
     assert not (tmp_path / "x.txt").exists()
+
+
+@pytest.mark.parametrize("size", ["0x64", "64x0", "8", "ax8", "70000x8", "4x-2"])
+def test_simulate_bad_size_names_the_option(tmp_path, capsys, size):
+    assert main(["simulate", "flat", "--size", size, "--readouts", "5",
+                 "--out", str(tmp_path / "x.dat")]) == 1
+    err = capsys.readouterr().err
+    assert f"--size={size!r} is invalid: expected HxW" in err and "height=" not in err
+    assert not (tmp_path / "x.dat").exists()
+
+
+def test_set_with_malformed_json_says_so(tmp_path, capsys):
+    out = str(tmp_path / "x.h5")
+    assert main(["simulate", "flat", "--set", "noise={bad json", "--readouts", "5",
+                 "--out", out]) == 1
+    err = capsys.readouterr().err
+    assert "--set noise='{bad json' is invalid: expected valid JSON; it is not" in err
+    assert "Expecting property name" in err and "PaperNoise" not in err
+    # a plain word is still a string, and well-formed JSON still parses
+    assert main(["simulate", "flat", "--size", "4x8", "--set", "cfa=RGGB", "--set",
+                 'noise={"type":"paper","sigma_g":5}', "--readouts", "5", "--out", out]) == 0
+    st = ss.io.read_h5(out)
+    assert st.cfa == "RGGB" and st.meta["sensor"]["noise"]["sigma_g"] == 5

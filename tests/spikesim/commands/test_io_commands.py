@@ -42,6 +42,16 @@ def test_info_dat_guess_note_and_folder(tmp_path, capsys, h5file):
     assert json.loads(capsys.readouterr().out)["name"] == "seq"
 
 
+def test_info_dat_of_unknown_size_names_the_size_options(tmp_path, capsys):
+    (tmp_path / "odd.dat").write_bytes(b"\x00" * 12345)
+    assert main(["info", str(tmp_path / "odd.dat")]) == 1
+    err = capsys.readouterr().err
+    assert "cannot guess the frame size" in err and "--height and --width" in err
+    assert main(["info", str(tmp_path / "odd.dat"), "--height", "4", "--width", "8"]) == 1
+    assert "--partial drop" in capsys.readouterr().err
+    assert main(["info", str(tmp_path / "odd.dat"), "--height", "1", "--width", "8"]) == 0
+
+
 def test_convert_h5_dat_h5_with_window_and_crop(tmp_path, h5file, capsys):
     path, s = h5file
     dat = tmp_path / "out.dat"

@@ -170,3 +170,13 @@ def test_dataset_roots_and_splits(reds, tmp_path):
     assert ss.io.resolve_dataset(f) == f
     with pytest.raises(SpikeSimValueError, match="single file"):
         ss.io.resolve_dataset(f, "train")
+
+
+@pytest.mark.parametrize("names", [("vidA", "vida"), ("vid-a", "vid_a")])
+def test_videos_whose_ids_collide_are_named(tmp_path, names):
+    """Sequence ids are lower-case slugs of the video names; two videos that give
+    the same id are refused naming both (it used to be an internal error)."""
+    root = reds_root(tmp_path / "reds", videos=names, n_frames=3, size=(64, 96))
+    with pytest.raises(SpikeSimValueError, match=rf"sources\[0\]=.*'{names[0]}' and "
+                                                 rf"'{names[1]}'.*rename one"):
+        plan_tasks(parse_manifest(clip_manifest(root, count=1)))

@@ -204,3 +204,27 @@ def test_datfile_pickles_and_holds_no_handle(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         DatFile(path, 8, 16)  # explicit size: no warning
+
+
+def test_write_dat_streams_a_simulate_chunks_run(tmp_path, monkeypatch):
+    import spikesim as ss
+    from spikesim.simulate import SimulationRun
+
+    scene = ss.scenes.procedural("astronaut", size=(16, 20))
+    sensor = ss.Sensor(height=16, width=20)
+    run = ss.simulate_chunks(scene, sensor, 300, seed=3, chunk_readouts=64)
+    assert write_dat(tmp_path / "run.dat", run) == 300
+    assert write_dat(tmp_path / "whole.dat", ss.simulate(scene, sensor, 300, seed=3)) == 300
+    assert (tmp_path / "run.dat").read_bytes() == (tmp_path / "whole.dat").read_bytes()
+
+    real = SimulationRun.__iter__
+
+    def fail_after_one(self):
+        it = real(self)
+        yield next(it)
+        raise RuntimeError("interrupted")
+
+    monkeypatch.setattr(SimulationRun, "__iter__", fail_after_one)
+    with pytest.raises(RuntimeError):
+        write_dat(tmp_path / "half.dat", run)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.dat", "whole.dat"]
