@@ -30,6 +30,7 @@ import errno
 import os
 import signal
 import sys
+import warnings
 from collections.abc import Callable
 
 from spikesim._validate import check_int, check_real, is_int, is_real
@@ -110,7 +111,9 @@ def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False)
     if debug:
         return int(call() or 0)
     try:
-        code = int(call() or 0)
+        with warnings.catch_warnings():
+            warnings.showwarning = _warning_line(label)
+            code = int(call() or 0)
         with contextlib.suppress(BrokenPipeError):
             sys.stdout.flush()
         return code
@@ -167,6 +170,14 @@ def _drop_cut_short_bars() -> None:
 
     hook.drops_cut_short_bars = True
     sys.unraisablehook = hook
+
+
+def _warning_line(label: str):
+    """A ``warnings.showwarning`` that prints ``LABEL: warning: MESSAGE`` (no file
+    name or source line: they point into the package, not at the user's input)."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        _say(label, f"warning: {message}")
+    return show
 
 
 def _say(label: str, text: str) -> None:

@@ -281,8 +281,9 @@ def interpolate(
     ys += top
     m0x, m0y = xs - tau * u[..., 0], ys - tau * u[..., 1]
     m1x, m1y = xs + (1 - tau) * u[..., 0], ys + (1 - tau) * u[..., 1]
-    a = np.clip(_sample(f0, m0x, m0y, cubic=True), 0.0, None)
-    b = np.clip(_sample(f1, m1x, m1y, cubic=True), 0.0, None)
+    # bicubic sampling over- and undershoots at edges: kept within each frame's range
+    a = np.clip(_sample(f0, m0x, m0y, cubic=True), 0.0, float(f0.max()))
+    b = np.clip(_sample(f1, m1x, m1y, cubic=True), 0.0, float(f1.max()))
     if occlusion:
         # a candidate counts when the pixel sampled there moves with the local motion u
         # (it belongs to the surface seen at x at time tau) and lies inside the frame

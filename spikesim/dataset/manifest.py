@@ -378,7 +378,10 @@ def _check_clips_fit(path: str, c: ClipSpec, v: VideoInfo, clip_s: float) -> Non
              f"each clip lasts {clip_s:.4g} s)")
     latest = v.duration_s - clip_s
     if latest < 0:
-        raise SpikeSimValueError(f"{path}: {where} is shorter than one clip")
+        raise SpikeSimValueError(
+            f"{path}: {where} is shorter than one clip (dataset.window × "
+            "dataset.samples_per_sequence readouts at the sensor's clock_hz): use fewer "
+            "samples_per_sequence, a shorter window or a faster clock")
     if c.start_s is not None:
         lo, hi = c.start_s.bounds() if c.start_s.law != "fixed" else (c.start_s.args[0],) * 2
         if hi > latest + 1e-9:

@@ -17,6 +17,7 @@ import numpy as np
 
 from spikesim.dataset.manifest import Manifest, SourceSpec
 from spikesim.errors import bad_value
+from spikesim.scenes.video import ASPECT_TOLERANCE, AspectWarning
 from spikesim.sensor import Sensor
 
 __all__ = ["SequenceTask", "plan_tasks", "derive_seed", "DuplicateClipWarning"]
@@ -178,8 +179,29 @@ def plan_tasks(manifest: Manifest) -> list[SequenceTask]:
                 clean_twin=manifest.clean_twin, manifest=manifest.name,
             ))
     _warn_duplicate_clips(tasks)
+    _warn_squashed(manifest)
     _check_unique_ids(tasks)
     return tasks
+
+
+def _warn_squashed(manifest: Manifest) -> None:
+    """One :class:`~spikesim.scenes.video.AspectWarning` per video source whose
+    frames (or crop boxes) are resized to ``[dataset].size`` with another aspect."""
+    h, w = manifest.size
+    for src in manifest.sources:
+        if src.clips is None:
+            continue
+        boxes = ([src.clips.crop_size] if src.clips.crop_size is not None else
+                 [(v.height, v.width) for v in src.videos])
+        off = [(bh, bw) for bh, bw in boxes
+               if abs((h / w) / (bh / bw) - 1.0) > ASPECT_TOLERANCE]
+        if off:
+            bh, bw = off[0]
+            warnings.warn(
+                f"sources[{src.index}]: {len(off)} of its {len(boxes)} frame or crop size(s) "
+                f"(e.g. {bh}x{bw}) are resized to the dataset size {h}x{w} with another aspect "
+                "ratio, squashing the content; give crop.size the aspect of [dataset].size to "
+                "keep its shape", AspectWarning, stacklevel=3)
 
 
 def _check_unique_ids(tasks: list[SequenceTask]) -> None:

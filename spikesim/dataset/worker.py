@@ -13,12 +13,14 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from spikesim.dataset.record import TaskRecord
 from spikesim.scenes import frame_cache
+from spikesim.scenes.video import AspectWarning
 
 __all__ = ["run_task", "run_batch", "validate_existing", "build_scene"]
 
@@ -71,7 +73,9 @@ def build_scene(spec: dict, seed: int):
               "start_s": spec.get("start_s", 0.0), "crop": spec.get("crop")}
     if spec.get("sequence"):
         kwargs["sequence"] = spec["sequence"]
-    return ss.scenes.video(spec["path"], **kwargs, **options)
+    with warnings.catch_warnings():  # the plan warned once per source (plan._warn_squashed)
+        warnings.simplefilter("ignore", AspectWarning)
+        return ss.scenes.video(spec["path"], **kwargs, **options)
 
 
 def clip_record(spec: dict, scene, clock_hz: float) -> dict | None:

@@ -58,7 +58,8 @@ def cover_resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     out = cv2.resize(crop, (w, h), interpolation=interp)
     if out.ndim == 2:
         out = out[..., None].repeat(3, axis=2)
-    return np.clip(out, 0.0, None).astype(np.float32)
+    # bicubic enlargement over- and undershoots at edges: kept within the picture's range
+    return np.clip(out, 0.0, float(crop.max())).astype(np.float32)
 
 
 def load_image(name: str, size: tuple[int, int]) -> np.ndarray:

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 from collections import OrderedDict
 
 import cv2
@@ -51,8 +52,8 @@ from spikesim.scenes.base import Scene
 from spikesim.scenes.photometry import check_exposure, decode_frame
 from spikesim.scenes.readers import FrameSource, SceneSource, VideoFileSource, open_frames
 
-__all__ = ["VideoScene", "video", "as_video", "DEFAULT_MAX_PX", "DEFAULT_FOLDER_FPS",
-           "DEFAULT_MARGIN"]
+__all__ = ["VideoScene", "video", "as_video", "AspectWarning", "DEFAULT_MAX_PX",
+           "DEFAULT_FOLDER_FPS", "DEFAULT_MARGIN"]
 
 #: Default largest displacement between key frames, pixels.
 DEFAULT_MAX_PX = 1.0
@@ -91,6 +92,25 @@ def _check_box(name: str, value, n: int, allowed: str) -> tuple[int, ...] | None
     if not ok:
         raise bad_value(name, value, allowed)
     return out
+
+
+class AspectWarning(UserWarning):
+    """``resize`` changes the aspect ratio of the (cropped) frames: content is squashed."""
+
+
+#: Relative change of the aspect ratio above which :class:`AspectWarning` is given.
+ASPECT_TOLERANCE = 0.02
+
+
+def _warn_aspect(resize, frame) -> None:
+    (h, w), (fh, fw) = resize, frame
+    change = (h / w) / (fh / fw)
+    if abs(change - 1.0) > ASPECT_TOLERANCE:
+        warnings.warn(
+            f"resize=({h}, {w}) squashes the {fh}x{fw} frames (aspect ratio changed by "
+            f"{100 * (change - 1):+.0f} %); crop a box of the target aspect first (crop=, or a "
+            "dataset source's crop.size) to keep the content's shape", AspectWarning,
+            stacklevel=4)
 
 
 class VideoScene(Scene):
@@ -216,6 +236,8 @@ class VideoScene(Scene):
                 "video", source.name,
                 f"at least 2 frames in the selected range (got {max(self.n_frames, 0)})")
         if self.resize is not None:
+            _warn_aspect(self.resize, self.crop[2:] if self.crop else
+                         (source.height, source.width))
             self.height, self.width = self.resize
         elif self.crop is not None:
             self.height, self.width = self.crop[2], self.crop[3]
@@ -285,8 +307,9 @@ class VideoScene(Scene):
             return img
         h, w = self.resize
         shrink = h < img.shape[0] or w < img.shape[1]
+        top = float(img.max())  # bicubic overshoot makes no light the frame did not have
         img = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_CUBIC)
-        return np.clip(img, 0.0, None)
+        return np.clip(img, 0.0, top)
 
     def _output(self, work: np.ndarray) -> np.ndarray:
         """The output image of an analysed one: the crop cut out of crop + margin, resized."""

@@ -81,3 +81,22 @@ def test_set_with_malformed_json_says_so(tmp_path, capsys):
                  'noise={"type":"paper","sigma_g":5}', "--readouts", "5", "--out", out]) == 0
     st = ss.io.read_h5(out)
     assert st.cfa == "RGGB" and st.meta["sensor"]["noise"]["sigma_g"] == 5
+
+
+def test_cli_warnings_are_one_line_naming_the_command(tmp_path, capsys):
+    """A warning raised during a command is printed as ``spikesim CMD: warning:
+    MESSAGE``, not with a file name and source line from inside the package."""
+    import cv2
+    import numpy as np
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(3):
+        assert cv2.imwrite(str(folder / f"{i:05d}.png"), np.full((24, 32, 3), 60 + 40 * i,
+                                                                 np.uint8))
+    assert main(["simulate", str(folder), "--sensor", "ideal", "--size", "16x16", "--readouts",
+                 "5", "--out", str(tmp_path / "s.h5")]) == 0
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if "warning" in ln]
+    assert lines and lines[0].startswith("spikesim simulate: warning: resize=(16, 16) squashes")
+    assert ".py:" not in err

@@ -180,3 +180,25 @@ def test_videos_whose_ids_collide_are_named(tmp_path, names):
     with pytest.raises(SpikeSimValueError, match=rf"sources\[0\]=.*'{names[0]}' and "
                                                  rf"'{names[1]}'.*rename one"):
         plan_tasks(parse_manifest(clip_manifest(root, count=1)))
+
+
+def test_a_clip_longer_than_the_video_names_the_keys_to_change(reds):
+    d = clip_manifest(reds)
+    d["dataset"]["samples_per_sequence"] = 100_000
+    with pytest.raises(SpikeSimValueError, match=r"sources\[0\]: video '000'.*shorter than one "
+                                                 r"clip \(dataset\.window × dataset\.samples_per"):
+        parse_manifest(d)
+
+
+def test_plan_warns_once_per_source_that_squashes_its_frames(reds):
+    import warnings
+
+    from spikesim.scenes.video import AspectWarning
+
+    with pytest.warns(AspectWarning, match=r"sources\[0\]: 1 of its 1 frame or crop size\(s\) "
+                                           r"\(e\.g\. 720x1280\).*256x256") as caught:
+        plan_tasks(parse_manifest(clip_manifest(reds, count=2)))
+    assert len([w for w in caught if w.category is AspectWarning]) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AspectWarning)
+        plan_tasks(parse_manifest(clip_manifest(reds, count=2, crop={"size": [300, 300]})))

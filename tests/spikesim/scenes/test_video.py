@@ -154,3 +154,36 @@ def test_bad_inputs(tmp_path, clip):
     (tmp_path / "junk.avi").write_bytes(b"\x00" * 100)
     with pytest.raises(SpikeSimFormatError, match="unreadable video"):
         sc.video(tmp_path / "junk.avi")
+
+
+def test_enlarged_and_interpolated_frames_stay_within_the_source_range(tmp_path):
+    """Bicubic enlargement and bicubic flow sampling overshoot at saturated edges
+    (ground truth reached 1.07 on 8-bit video); they are clipped to the source
+    frames' range, so an 8-bit video's radiance and ground truth stay in 0..1."""
+    folder = tmp_path / "edges"
+    folder.mkdir()
+    for i in range(3):
+        img = np.zeros((24, 32, 3), np.uint8)
+        img[:, 8 + 3 * i: 20 + 3 * i] = 255  # a white bar moving right
+        assert cv2.imwrite(str(folder / f"{i:05d}.png"), img)
+    v = sc.video(folder, resize=(60, 80))
+    assert all(float(v.frame(i).max()) <= 1.0 for i in range(3))
+    between = [v.radiance(t) for t in np.linspace(0, 2 / v.fps, 7)]
+    assert max(float(r.max()) for r in between) <= 1.0
+    assert min(float(r.min()) for r in between) >= 0.0
+    assert max(float(r.max()) for r in between) == 1.0  # the bar's white is kept
+
+
+def test_resize_to_another_aspect_warns_once(tmp_path):
+    import warnings
+
+    from spikesim.scenes.video import AspectWarning
+
+    _write_folder(tmp_path / "f", [f"{i:05d}.png" for i in range(3)])  # 32x40 frames
+    with pytest.warns(AspectWarning, match=r"resize=\(40, 40\) squashes the 32x40 frames "
+                                           r"\(aspect ratio changed by \+25 %\)"):
+        sc.video(tmp_path / "f", resize=(40, 40))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AspectWarning)
+        sc.video(tmp_path / "f", resize=(64, 80))  # same aspect
+        sc.video(tmp_path / "f", resize=(40, 40), crop=(0, 4, 32, 32))  # a square crop
