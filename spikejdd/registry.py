@@ -143,7 +143,12 @@ def _import_target(text: str, what: str = "method") -> Any:
     try:
         obj = importlib.import_module(mod_name)
     except ImportError as exc:
-        raise bad_value(what, text, f"an importable package.module:function ({exc})") from None
+        hint = ""
+        if isinstance(exc, ModuleNotFoundError) and exc.name == mod_name.split(".")[0]:
+            hint = ("; a module of your own must be on the import path: run from its folder "
+                    "with PYTHONPATH=. or install it")
+        raise bad_value(what, text,
+                        f"an importable package.module:function ({exc}{hint})") from None
     for part in attr.split("."):
         if not hasattr(obj, part):
             raise bad_value(what, text, f"a name defined in module {mod_name!r} ({attr!r} is not)")

@@ -122,8 +122,6 @@ class Trainer:
             dist.init_process_group("nccl" if self.device.type == "cuda" else "gloo")
         self.main = self.rank == 0
         self.out = Path(cfg.out)
-        if self.main:
-            self.out.mkdir(parents=True, exist_ok=True)
         self.mcfg = cfg.model_config()
         torch.manual_seed(cfg.seed)
         self.model = SJDDNet(self.mcfg).to(self.device)
@@ -131,6 +129,8 @@ class Trainer:
             self.model = self.model.to(memory_format=torch.channels_last)
         self.state = TrainState()
         self._setup_data()
+        if self.main:  # only once the data checks passed: a refused run leaves no folder
+            self.out.mkdir(parents=True, exist_ok=True)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=cfg.lr)
         self.lr_step = cfg.lr_step_for(self.steps_per_epoch)
         self.scheduler = torch.optim.lr_scheduler.StepLR(self.optimizer, step_size=self.lr_step,

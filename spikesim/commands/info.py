@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import sys
+from pathlib import Path
 
 from spikesim.commands._io_common import add_source_options, source_from_args
 
@@ -103,13 +105,22 @@ def run(args) -> int:
 
     check_int("--stats-readouts", args.stats_readouts, 1, unit="readouts")
     path = args.path if is_dat(args.path) else resolve_dataset(args.path, args.split)
+    note = None
     if args.all and not is_dat(args.path):
         sources = list(open_dataset(path))
     else:
         sources = [source_from_args(args, path)]
+        if not is_dat(args.path) and Path(path).is_dir():
+            n = len(open_dataset(path).names)
+            if n > 1:
+                note = f"(the first of {n} sequences in {path}; --all describes every one)"
     infos = [describe(s, args.stats_readouts) for s in sources]
     if args.json:
         print(json.dumps(infos if len(infos) > 1 else infos[0], indent=1, default=str))
+        if note:
+            print(note, file=sys.stderr)
     else:
         print("\n\n".join(_text(i) for i in infos))
+        if note:
+            print(note)
     return 0

@@ -13,7 +13,8 @@
   fresh process, so only the task that kills its worker fails.
 * Pool workers die with their parent and never rename a file into place after
   it is gone (``_watch.py``).  SIGTERM or Ctrl-C stops the workers, removes
-  their temporary files and still writes ``build_summary.json``.
+  their temporary files and still writes ``build_summary.json`` and the
+  split indexes, counting every file finished before the stop.
 * Stale temporary files of killed writers are removed; those of another live
   run into the same folder are left alone (``spikesim.io.atomic``).
 * Each split folder gets an ``index.json`` (``spikesim.io.build_index``), and
@@ -181,9 +182,15 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
             with worker_thread_env(max(1, (os.cpu_count() or 1) // workers)):
                 _run_pool(pending, out, workers, on_result)
     except BaseException:
-        # stopped (SIGTERM, Ctrl-C) or a scheduler error: record what was done
+        # stopped (SIGTERM, Ctrl-C) or a scheduler error: record what was done,
+        # the files workers finished but had not reported yet included, and index it
         summary.seconds = time.perf_counter() - t0
         summary.executor += " (interrupted)"
+        with contextlib.suppress(Exception):
+            _record_finished(pending, out, summary)
+            for split in splits:
+                if (out / split).is_dir():
+                    build_index(out / split)
         with contextlib.suppress(Exception):
             _write_summary(out / "build_summary.json", summary)
         raise
@@ -196,6 +203,26 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
             build_index(out / split)
     _write_summary(out / "build_summary.json", summary)
     return summary
+
+
+def _record_finished(pending: list[dict], out: Path, summary: BuildSummary) -> None:
+    """Count as done the tasks of ``pending`` with no record whose file is complete
+    on disk: a worker's batch reports only when all of it is made, so an
+    interruption stops workers that had finished files the parent never heard of.
+    (Only complete files get their final name.)"""
+    reported = {r["file"] for r in summary.records}
+    for t in pending:
+        path = out / t["file"]
+        if t["file"] in reported or not validate_existing(path, t):
+            continue
+        size = path.stat().st_size
+        sensor = t["sensor"]
+        px = int(sensor["height"]) * int(sensor["width"]) * int(t["n_readouts"])
+        summary.records.append(TaskRecord.of(t, bytes=size, px_readouts=px,
+                                             seconds={}).to_dict())
+        summary.done += 1
+        summary.bytes += size
+        summary.px_readouts += px
 
 
 def _new_pool(workers: int) -> ProcessPoolExecutor:

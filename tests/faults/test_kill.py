@@ -114,6 +114,12 @@ def test_sigterm_of_the_dataset_parent_stops_workers_and_records(tmp_path):
     summary = json.loads((tmp_path / "ds" / "build_summary.json").read_text())
     assert "interrupted" in summary["executor"]
     assert not no_temps(tmp_path / "ds")
+    # every file finished before the stop is counted and indexed, reported or not
+    made = finals(tmp_path / "ds")
+    assert summary["done"] == len(made)
+    if made:
+        index = json.loads((tmp_path / "ds" / "train" / "index.json").read_text())
+        assert len(index["sequences"]) == len(made)
 
 
 FACTORY = textwrap.dedent(

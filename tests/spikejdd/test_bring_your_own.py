@@ -131,7 +131,7 @@ def test_registry_object_register_get_names():
         reg.register(zeros, name="zeros")
     with pytest.raises(SpikeSimValueError, match="package.module:function"):
         reg.get("nope")
-    with pytest.raises(SpikeSimValueError, match="importable"):
+    with pytest.raises(SpikeSimValueError, match="importable.*on the import path.*PYTHONPATH"):
         reg.get("no_such_pkg.mod:fn")
     with pytest.raises(SpikeSimValueError, match="takes weights"):
         reg.get("zeros@w.pt")

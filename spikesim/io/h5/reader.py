@@ -22,10 +22,16 @@ from spikesim.io.h5.format import READ_CACHE_BYTES, header_of
 __all__ = ["Sequence", "open_h5", "read_h5", "read_header"]
 
 
+_VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".gif")
+
+
 def _describe_open_error(path: Path, exc: Exception) -> SpikeSimFormatError:
     text = str(exc)
     if "signature" in text:
         why = "not an HDF5 file (no HDF5 signature)"
+        if path.suffix.lower() in _VIDEO_SUFFIXES:
+            why += (f"; a video is turned into spikes first: spikesim simulate {path.name} "
+                    "--out spikes.h5")
     elif "truncat" in text or "eof" in text.lower():
         why = "a truncated HDF5 file (shorter than its header says: an interrupted copy?)"
     else:

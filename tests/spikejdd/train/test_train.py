@@ -118,6 +118,18 @@ def test_bad_train_config():
         TrainConfig(data="x", model="huge").model_config()
 
 
+def test_refused_runs_leave_no_output_folder(tiny_data, tmp_path, capsys):
+    root, _ = tiny_data
+    for data, extra, message in (
+            (tmp_path / "nosuch", [], "no such dataset folder"),
+            (root, [], "window=39 is invalid")):  # the full model on 21-readout data
+        out = tmp_path / "a" / "run"
+        assert main(["train", "--data", str(data), "--out", str(out), "--steps", "1", "--quiet",
+                     *extra]) == 1
+        assert message in capsys.readouterr().err
+        assert not (tmp_path / "a").exists()
+
+
 def test_cli_train_and_reconstruct(tiny_data, tmp_path, capsys):
     root, _ = tiny_data
     cfg = tmp_path / "run.json"

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+import spikesim as ss
 from spikesim.cli import main
 from spikesim.io import open_h5, read_dat, write_dat, write_h5
 
@@ -130,3 +131,15 @@ def test_convert_to_sjdd_layout(tmp_path, h5file, capsys):
     assert "wrote 3 samples" in capsys.readouterr().out
     assert len(list((tmp_path / "train" / "spk" / "0" / "s1").glob("*.dat"))) == 3
     assert len(list((tmp_path / "train" / "gt" / "s1").glob("*.npy"))) == 3
+
+
+def test_info_of_a_folder_says_which_sequence_of_how_many(tmp_path, capsys):
+    scene = ss.scenes.Static(np.full((8, 16), 0.3, np.float32))
+    for name in ("a", "b", "c"):
+        write_h5(tmp_path / f"{name}.h5", ss.simulate(scene, ss.Sensor(height=8, width=16), 5))
+    assert main(["info", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert out.rstrip().endswith(f"(the first of 3 sequences in {tmp_path}; --all describes "
+                                 "every one)")
+    assert main(["info", str(tmp_path / "a.h5")]) == 0
+    assert "the first of" not in capsys.readouterr().out

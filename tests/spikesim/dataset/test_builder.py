@@ -179,6 +179,35 @@ def test_result_lost_with_the_pool_but_file_complete_counts_as_done(tmp_path):
     assert _lost(task, BrokenProcessPool("x"), tmp_path)["status"] == "failed"
 
 
+def test_interrupted_build_counts_and_indexes_files_finished_unreported(tmp_path, monkeypatch):
+    """Stopped (Ctrl-C, SIGTERM) after a worker finished a file it had not reported
+    yet (a pool batch reports when all of it is made): the summary counts the
+    file as done and the split's index lists it, as a re-run would find it."""
+    import json
+
+    from spikesim.dataset import build
+
+    real = build.run_task
+    made = []
+
+    def finish_then_stop(task, out, *args):
+        record = real(task, out, *args)
+        made.append(task["file"])
+        if len(made) == 2:
+            raise KeyboardInterrupt  # the second file is complete, its record lost
+        return record
+
+    monkeypatch.setattr(build, "run_task", finish_then_stop)
+    manifest = parse_manifest(small_manifest(count=4))
+    with pytest.raises(KeyboardInterrupt):
+        build_dataset(manifest, tmp_path / "ds", workers=1, progress=False)
+    summary = json.loads((tmp_path / "ds" / "build_summary.json").read_text())
+    assert "interrupted" in summary["executor"] and summary["done"] == 2
+    assert {r["file"] for r in summary["records"]} == set(made)
+    index = json.loads((tmp_path / "ds" / "train" / "index.json").read_text())
+    assert len(index["sequences"]) == 2
+
+
 @pytest.mark.parametrize(
     "mutate,where",
     [

@@ -234,6 +234,10 @@ def test_truncated_random_and_empty_files(tmp_path, make_stream):
     rnd.write_bytes(np.random.default_rng(0).integers(0, 256, 5000, dtype=np.uint8).tobytes())
     with pytest.raises(SpikeSimFormatError, match="not an HDF5 file"):
         open_h5(rnd)
+    video = tmp_path / "clip.mp4"  # a video where spikes were expected: say what to do
+    video.write_bytes(rnd.read_bytes())
+    with pytest.raises(SpikeSimFormatError, match="not an HDF5 file.*spikesim simulate clip.mp4"):
+        open_h5(video)
     empty = tmp_path / "empty.h5"
     empty.write_bytes(b"")
     with pytest.raises(SpikeSimFormatError, match="empty"):
