@@ -141,11 +141,16 @@ class ImageFolderSource(FrameSource):
 
 
 class VideoFileSource(FrameSource):
-    """A video file read through OpenCV, sequentially with seeking when needed."""
+    """A video file read through OpenCV, sequentially with seeking when needed.
+
+    FFmpeg's own log is silenced (``OPENCV_FFMPEG_LOGLEVEL``, unless the user set
+    it): a file it cannot read printed ``moov atom not found`` before this
+    class's one-line error."""
 
     def __init__(self, path: Path):
         super().__init__()
         self.path, self.name = path, str(path)
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # read when a capture opens
         self._cap = cv2.VideoCapture(str(path))
         if not self._cap.isOpened():
             raise SpikeSimFormatError(f"unreadable video {path}: OpenCV could not open it")

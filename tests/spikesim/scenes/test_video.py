@@ -187,3 +187,19 @@ def test_resize_to_another_aspect_warns_once(tmp_path):
         warnings.simplefilter("error", AspectWarning)
         sc.video(tmp_path / "f", resize=(64, 80))  # same aspect
         sc.video(tmp_path / "f", resize=(40, 40), crop=(0, 4, 32, 32))  # a square crop
+
+
+def test_an_unreadable_video_gives_one_line_without_ffmpeg_noise(tmp_path):
+    """FFmpeg's log (``moov atom not found``) is silenced; the error says it all."""
+    import subprocess
+    import sys
+
+    bad = tmp_path / "notes.mp4"
+    bad.write_text("not a video\n")
+    code = ("import spikesim.scenes as sc\n"
+            f"try:\n    sc.video({str(bad)!r})\nexcept Exception as e:\n    print(e)\n")
+    env = {k: v for k, v in __import__("os").environ.items() if k != "OPENCV_FFMPEG_LOGLEVEL"}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         timeout=120)
+    assert "unreadable video" in run.stdout
+    assert "moov" not in run.stderr, run.stderr
