@@ -83,9 +83,7 @@ def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
                             "flat masks: none was given and no flat region was found outside "
                             f"dark_mask (a uniform, static region of >= {cfg.min_pixels} pixels "
                             f"and >= {MIN_FLAT_SPIKES} spikes per pixel below saturation)")
-        notes.append(f"dark region from dark_mask; {len(flats)} flat region(s) detected "
-                     "automatically")
-        return dark, flats, True
+        return dark, flats, "flat regions"
     if dark is not None or flats:
         change = (second - first) * (n / 2)
         for i, f in enumerate(flats):
@@ -137,18 +135,23 @@ CALIBRATED_RESETS = ("modulo", "subtract")
 
 
 def _reset_mode(cap, reset, notes) -> str:
-    """The capture's reset mode: ``reset`` when given, else the one its metadata
-    records (a spikesim simulation), else modulo (stated in the notes).  Zero
-    reset is refused: it discards each cycle's residual charge, so its rate is
-    not linear in the charge and its intervals follow another law."""
+    """The capture's reset mode: the one its metadata records (a spikesim
+    simulation; a ``reset`` given that differs is an error), else ``reset``,
+    else modulo (stated in the notes).  Zero reset is refused: it discards each
+    cycle's residual charge, so its rate is not linear in the charge and its
+    intervals follow another law."""
+    sensor = cap.meta.get("sensor")
+    recorded = sensor.get("reset") if isinstance(sensor, dict) else None
     name = "reset"
     if reset is None:
-        recorded = cap.meta.get("sensor")
-        reset = recorded.get("reset") if isinstance(recorded, dict) else None
-        name = "the capture's reset mode (its metadata)"
+        reset, name = recorded, "the capture's reset mode (its metadata)"
+    elif recorded is not None and reset != recorded:
+        raise bad_value("reset", reset, f"the capture's own reset mode {recorded!r}, which its "
+                        "metadata records (or leave reset out)")
     if reset is None:
         notes.append("reset mode unknown: modulo assumed (modulo and subtract reset fire "
-                     "alike below one threshold per readout); pass reset= if it is known")
+                     "alike below one threshold per readout); pass reset= (--reset) if it "
+                     "is known")
         return "modulo"
     if reset not in CALIBRATED_RESETS:
         raise bad_value(name, reset,
@@ -187,8 +190,9 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
         :func:`spikesim.io.read_dat`; ``cfa``/``clock_hz`` override the source).
     reset : {"modulo", "subtract"}, optional
         The capture's reset mode, kept in the fitted sensor; by default the
-        one a spikesim capture records, else modulo (stated in the notes).
-        Zero-reset captures are refused: the fit's model does not describe them.
+        one a spikesim capture records (a different one given is an error),
+        else modulo (stated in the notes).  Zero-reset captures are refused:
+        the fit's model does not describe them.
     dark_mask : (H, W) bool, optional
         Pixels that saw no light.
     flat_masks : list of (H, W) bool, or (H, W) int labels (0 = none), optional
@@ -234,6 +238,11 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
                    flat_levels_unknown=levels is None)
 
 
+#: How the regions were found, by ``_regions``' third result, for the report.
+_REGIONS_FROM = {True: "detected automatically", False: "from masks",
+                 "flat regions": "dark region from dark_mask, flat regions detected"}
+
+
 def _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected, fit,
             flat_levels_unknown: bool):
     """Assemble the :class:`CalibrationResult` (data, tables, notes, plot)."""
@@ -269,7 +278,7 @@ def _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected,
                 f"with σ_t held at {cfg.temporal_threshold_noise}.")
     result.notes = [
         f"Capture {cap.name}: {n} readouts × {cap.height} × {cap.width}; regions "
-        f"{'detected automatically' if detected else 'from masks'}: "
+        f"{_REGIONS_FROM[detected]}: "
         f"{diag['dark_pixels']} dark pixels, flat regions of {diag['flat_pixels']} pixels at "
         f"radiances {[round(float(v), 4) for v in lv]}.",
         "Identifiability: threshold mismatch and PRNU are split with mismatch_split = "

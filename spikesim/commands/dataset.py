@@ -46,7 +46,8 @@ def run(args) -> int:
         est = estimate_dataset(manifest, workers=args.workers, limit=args.limit,
                                dask_local=args.dask_local, out_dir=args.out)
         print(json.dumps(est, indent=2))
-        print(f"plan: {est['sequences']} sequences ({est['by_split']}), {est['to_make']} to "
+        print(f"plan: {est['sequences']} sequence{'' if est['sequences'] == 1 else 's'} "
+              f"({est['by_split']}), {est['to_make']} to "
               f"make, {est['px_readouts']:.3g} pixel-readouts, about "
               f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s "
               f"({est['executor']}, {est['startup_seconds']:.1f} s of it start-up)")

@@ -111,9 +111,11 @@ def run(args) -> int:
     else:
         sources = [source_from_args(args, path)]
         if not is_dat(args.path) and Path(path).is_dir():
-            n = len(open_dataset(path).names)
-            if n > 1:
-                note = f"(the first of {n} sequences in {path}; --all describes every one)"
+            names = list(open_dataset(path).names)
+            name = getattr(sources[0], "name", None)
+            if len(names) > 1 and name in names:
+                note = (f"(sequence {names.index(name) + 1} of {len(names)} in {path}: "
+                        "--sequence picks another, --all describes every one)")
     infos = [describe(s, args.stats_readouts) for s in sources]
     if args.json:
         print(json.dumps(infos if len(infos) > 1 else infos[0], indent=1, default=str))

@@ -191,17 +191,18 @@ def _warn_squashed(manifest: Manifest) -> None:
     for src in manifest.sources:
         if src.clips is None:
             continue
-        boxes = ([src.clips.crop_size] if src.clips.crop_size is not None else
-                 [(v.height, v.width) for v in src.videos])
+        crop = src.clips.crop_size
+        boxes = [crop] if crop is not None else [(v.height, v.width) for v in src.videos]
         off = [(bh, bw) for bh, bw in boxes
                if abs((h / w) / (bh / bw) - 1.0) > ASPECT_TOLERANCE]
         if off:
             bh, bw = off[0]
+            what = (f"its crop.size {bh}x{bw} is" if crop is not None else
+                    f"{len(off)} of its {len(boxes)} video(s) (e.g. {bh}x{bw} frames) are")
             warnings.warn(
-                f"sources[{src.index}]: {len(off)} of its {len(boxes)} frame or crop size(s) "
-                f"(e.g. {bh}x{bw}) are resized to the dataset size {h}x{w} with another aspect "
-                "ratio, squashing the content; give crop.size the aspect of [dataset].size to "
-                "keep its shape", AspectWarning, stacklevel=3)
+                f"sources[{src.index}]: {what} resized to the dataset size {h}x{w} with another "
+                "aspect ratio, squashing the content; give crop.size the aspect of "
+                "[dataset].size to keep its shape", AspectWarning, stacklevel=3)
 
 
 def _check_unique_ids(tasks: list[SequenceTask]) -> None:

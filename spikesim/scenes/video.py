@@ -108,8 +108,9 @@ def _warn_aspect(resize, frame) -> None:
     if abs(change - 1.0) > ASPECT_TOLERANCE:
         warnings.warn(
             f"resize=({h}, {w}) squashes the {fh}x{fw} frames (aspect ratio changed by "
-            f"{100 * (change - 1):+.0f} %); crop a box of the target aspect first (crop=, or a "
-            "dataset source's crop.size) to keep the content's shape", AspectWarning,
+            f"{100 * (change - 1):+.0f} %); to keep the content's shape give a size of the "
+            "frames' aspect, or crop a box of the target aspect first (crop= of "
+            "spikesim.scenes.video, crop.size in a dataset manifest)", AspectWarning,
             stacklevel=4)
 
 

@@ -181,6 +181,9 @@ def test_reset_mode_is_kept_and_zero_reset_refused():
     assert unknown.sensor.reset == "modulo"
     assert any("reset mode unknown" in n for n in unknown.notes)
     assert calibrate(stream.unpack(), reset="subtract", **masks).sensor.reset == "subtract"
+    with pytest.raises(SpikeSimValueError, match="reset='modulo'.*capture's own reset mode "
+                                                 "'subtract'"):
+        calibrate(stream, reset="modulo", **masks)
     zero, _ = _bands_capture("zero", 300)
     with pytest.raises(SpikeSimValueError, match="reset mode.*'zero'.*no zero-reset form"):
         calibrate(zero, **masks)
@@ -206,7 +209,7 @@ def test_dark_mask_alone_detects_the_flat_regions():
     assert len(res.flat_masks) == 3
     for found, level in zip(res.flat_masks, (0.1, 0.25, 0.5), strict=True):
         assert not np.any(found & (img != level))
-    assert any("dark region from dark_mask" in n for n in res.notes)
+    assert "regions dark region from dark_mask, flat regions detected" in res.notes[0]
     with pytest.raises(SpikeSimValueError, match="flat_masks.*detect=True"):
         calibrate(stream, dark_mask=img == 0, detect=False, check=False)
 

@@ -139,7 +139,11 @@ def test_info_of_a_folder_says_which_sequence_of_how_many(tmp_path, capsys):
         write_h5(tmp_path / f"{name}.h5", ss.simulate(scene, ss.Sensor(height=8, width=16), 5))
     assert main(["info", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert out.rstrip().endswith(f"(the first of 3 sequences in {tmp_path}; --all describes "
-                                 "every one)")
+    assert out.rstrip().endswith(f"(sequence 1 of 3 in {tmp_path}: --sequence picks another, "
+                                 "--all describes every one)")
+    for pick in ("1", "b"):  # by position (0-based) and by name
+        assert main(["info", str(tmp_path), "--sequence", pick]) == 0
+        out = capsys.readouterr().out
+        assert out.startswith("b  ") and "(sequence 2 of 3 in" in out
     assert main(["info", str(tmp_path / "a.h5")]) == 0
-    assert "the first of" not in capsys.readouterr().out
+    assert "(sequence " not in capsys.readouterr().out

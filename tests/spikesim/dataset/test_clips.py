@@ -195,10 +195,12 @@ def test_plan_warns_once_per_source_that_squashes_its_frames(reds):
 
     from spikesim.scenes.video import AspectWarning
 
-    with pytest.warns(AspectWarning, match=r"sources\[0\]: 1 of its 1 frame or crop size\(s\) "
-                                           r"\(e\.g\. 720x1280\).*256x256") as caught:
+    with pytest.warns(AspectWarning, match=r"sources\[0\]: 1 of its 1 video\(s\) \(e\.g\. "
+                                           r"720x1280 frames\) are resized.*256x256") as caught:
         plan_tasks(parse_manifest(clip_manifest(reds, count=2)))
     assert len([w for w in caught if w.category is AspectWarning]) == 1
     with warnings.catch_warnings():
         warnings.simplefilter("error", AspectWarning)
         plan_tasks(parse_manifest(clip_manifest(reds, count=2, crop={"size": [300, 300]})))
+    with pytest.warns(AspectWarning, match=r"its crop\.size 300x400 is resized"):
+        plan_tasks(parse_manifest(clip_manifest(reds, count=2, crop={"size": [300, 400]})))
