@@ -138,7 +138,7 @@ def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1)
               if length and g - half >= 0 and g - half + length <= n]
         if len(ok) < wanted:
             left_out += wanted - len(ok)
-            widest = min(fits[wanted - 1], widest or fits[wanted - 1])
+            widest = fits[wanted - 1] if widest is None else min(widest, fits[wanted - 1])
         if not ok:
             continue
         pick = np.unique(np.linspace(0, len(ok) - 1, min(per_sequence, len(ok))).round())

@@ -17,7 +17,7 @@ import numpy as np
 
 from spikesim.dataset.manifest import Manifest, SourceSpec
 from spikesim.errors import bad_value
-from spikesim.scenes.video import ASPECT_TOLERANCE, AspectWarning
+from spikesim.scenes.video import ASPECT_TOLERANCE, AspectWarning, aspect_change
 from spikesim.sensor import Sensor
 
 __all__ = ["SequenceTask", "plan_tasks", "derive_seed", "DuplicateClipWarning"]
@@ -193,8 +193,7 @@ def _warn_squashed(manifest: Manifest) -> None:
             continue
         crop = src.clips.crop_size
         boxes = [crop] if crop is not None else [(v.height, v.width) for v in src.videos]
-        off = [(bh, bw) for bh, bw in boxes
-               if abs((h / w) / (bh / bw) - 1.0) > ASPECT_TOLERANCE]
+        off = [box for box in boxes if abs(aspect_change((h, w), box)) > ASPECT_TOLERANCE]
         if off:
             bh, bw = off[0]
             what = (f"its crop.size {bh}x{bw} is" if crop is not None else

@@ -34,6 +34,7 @@ from spikesim.cfa import normalize_cfa
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimTypeError, bad_value
 from spikesim.io._decode import decode_frames
 from spikesim.io._guard import write_error
+from spikesim.io._runs import contiguous_chunks
 from spikesim.io.atomic import atomic_path, lock_temp
 
 __all__ = [
@@ -463,9 +464,6 @@ def _write_run(path: str | os.PathLike, run, meta: dict, flip: bool, overwrite: 
     """Stream the chunks of a ``simulate_chunks`` run into one ``.dat`` file."""
     with DatWriter(path, meta.get("height"), meta.get("width"), flip=flip,
                    overwrite=overwrite) as w:
-        for chunk in run:
-            start = getattr(chunk, "start", w.n_readouts)
-            if start != w.n_readouts:
-                raise bad_value("chunk.start", start, f"{w.n_readouts} (chunks must be contiguous)")
+        for chunk in contiguous_chunks(run):
             w.write_packed(chunk.packed)
     return w.n_readouts

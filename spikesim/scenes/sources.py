@@ -21,7 +21,7 @@ from spikesim._validate import check_size
 from spikesim.errors import bad_value
 from spikesim.scenes.photometry import decode_frame
 
-__all__ = ["IMAGES", "load_image", "cover_resize", "colorchecker_linear_srgb"]
+__all__ = ["IMAGES", "load_image", "cover_resize", "resize_linear", "colorchecker_linear_srgb"]
 
 #: Name → (skimage.data function name, one-line description).
 IMAGES: dict[str, tuple[str, str]] = {
@@ -46,6 +46,18 @@ def _raw_linear(name: str) -> np.ndarray:
     return out
 
 
+def resize_linear(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """``image`` (linear light) resized to ``size`` = (H, W): area averaging when
+    shrinking, bicubic when enlarging, clipped to the image's own range (bicubic
+    over- and undershoots at edges: no light the image did not have)."""
+    h, w = size
+    if image.shape[:2] == (h, w):
+        return image
+    shrink = h < image.shape[0] or w < image.shape[1]
+    out = cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_CUBIC)
+    return np.clip(out, 0.0, float(image.max()))
+
+
 def cover_resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """Crop the centre of ``image`` to the aspect of ``size`` and resize to it (linear light)."""
     h, w = size
@@ -54,12 +66,10 @@ def cover_resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     ch, cw = min(ih, round(h / scale)), min(iw, round(w / scale))
     top, left = (ih - ch) // 2, (iw - cw) // 2
     crop = np.ascontiguousarray(image[top : top + ch, left : left + cw], dtype=np.float32)
-    interp = cv2.INTER_AREA if scale < 1 else cv2.INTER_CUBIC
-    out = cv2.resize(crop, (w, h), interpolation=interp)
+    out = resize_linear(crop, size)
     if out.ndim == 2:
         out = out[..., None].repeat(3, axis=2)
-    # bicubic enlargement over- and undershoots at edges: kept within the picture's range
-    return np.clip(out, 0.0, float(crop.max())).astype(np.float32)
+    return np.clip(out, 0.0, None).astype(np.float32)
 
 
 def load_image(name: str, size: tuple[int, int]) -> np.ndarray:

@@ -32,10 +32,6 @@ def _checked_float32(arr: np.ndarray, name: str) -> np.ndarray:
     as it would have (a float32 cast would have made it inf)."""
     if arr.shape[0] < 1 or arr.shape[1] < 1:
         raise bad_value(f"{name}.shape", arr.shape, "H >= 1 and W >= 1")
-    if arr.dtype == np.float32:
-        arr = np.ascontiguousarray(arr)
-        _check_values(arr, name)
-        return arr
     _check_values(arr, name)
     if arr.dtype.kind == "f" and arr.dtype.itemsize > 4:
         arr = np.minimum(arr, FLOAT32_MAX)

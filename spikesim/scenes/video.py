@@ -34,7 +34,6 @@ import time
 import warnings
 from collections import OrderedDict
 
-import cv2
 import numpy as np
 
 from spikesim._validate import check_positive, check_time
@@ -51,8 +50,9 @@ from spikesim.motion import n_intermediate as _n_intermediate
 from spikesim.scenes.base import Scene
 from spikesim.scenes.photometry import check_exposure, decode_frame
 from spikesim.scenes.readers import FrameSource, SceneSource, VideoFileSource, open_frames
+from spikesim.scenes.sources import resize_linear
 
-__all__ = ["VideoScene", "video", "as_video", "AspectWarning", "DEFAULT_MAX_PX",
+__all__ = ["VideoScene", "video", "as_video", "AspectWarning", "aspect_change", "DEFAULT_MAX_PX",
            "DEFAULT_FOLDER_FPS", "DEFAULT_MARGIN"]
 
 #: Default largest displacement between key frames, pixels.
@@ -102,13 +102,20 @@ class AspectWarning(UserWarning):
 ASPECT_TOLERANCE = 0.02
 
 
+def aspect_change(size, frame) -> float:
+    """Relative change of the aspect ratio when ``frame`` = (H, W) is resized to
+    ``size`` (0: kept; squashed beyond :data:`ASPECT_TOLERANCE`)."""
+    (h, w), (fh, fw) = size, frame
+    return (h / w) / (fh / fw) - 1.0
+
+
 def _warn_aspect(resize, frame) -> None:
     (h, w), (fh, fw) = resize, frame
-    change = (h / w) / (fh / fw)
-    if abs(change - 1.0) > ASPECT_TOLERANCE:
+    change = aspect_change(resize, frame)
+    if abs(change) > ASPECT_TOLERANCE:
         warnings.warn(
             f"resize=({h}, {w}) squashes the {fh}x{fw} frames (aspect ratio changed by "
-            f"{100 * (change - 1):+.0f} %); to keep the content's shape give a size of the "
+            f"{100 * change:+.0f} %); to keep the content's shape give a size of the "
             "frames' aspect, or crop a box of the target aspect first (crop= of "
             "spikesim.scenes.video, crop.size in a dataset manifest)", AspectWarning,
             stacklevel=4)
@@ -304,13 +311,7 @@ class VideoScene(Scene):
         return img
 
     def _resized(self, img: np.ndarray) -> np.ndarray:
-        if self.resize is None or img.shape[:2] == tuple(self.resize):
-            return img
-        h, w = self.resize
-        shrink = h < img.shape[0] or w < img.shape[1]
-        top = float(img.max())  # bicubic overshoot makes no light the frame did not have
-        img = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_CUBIC)
-        return np.clip(img, 0.0, top)
+        return img if self.resize is None else resize_linear(img, self.resize)
 
     def _output(self, work: np.ndarray) -> np.ndarray:
         """The output image of an analysed one: the crop cut out of crop + margin, resized."""

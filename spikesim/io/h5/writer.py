@@ -21,6 +21,7 @@ from spikesim._version import __version__
 from spikesim.errors import SpikeSimFileError, SpikeSimTypeError, bad_value
 from spikesim.io._compression import DEFAULT_COMPRESSION, compression_kwargs
 from spikesim.io._guard import GuardedFile, write_error
+from spikesim.io._runs import contiguous_chunks
 from spikesim.io.atomic import atomic_path
 from spikesim.io.h5.format import (
     DIGEST_ATTR,
@@ -284,10 +285,7 @@ def write_h5(path: str | os.PathLike, source, compression: str = DEFAULT_COMPRES
 
 
 def _write_chunks(w: H5Writer, run: Iterable, bar) -> None:
-    for chunk in run:
-        start = getattr(chunk, "start", w.n_readouts)
-        if start != w.n_readouts:
-            raise bad_value("chunk.start", start, f"{w.n_readouts} (chunks must be contiguous)")
+    for chunk in contiguous_chunks(run):
         w.append(chunk.packed, getattr(chunk, "clean_packed", None) if w.clean else None)
         gt = getattr(chunk, "gt", None)
         if gt is not None and len(gt):
