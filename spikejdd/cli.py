@@ -183,25 +183,30 @@ def _evaluate(args) -> int:
         result = evaluate.sweep(methods, size=args.size, context=args.context or 41,
                                 frames_per_scene=args.frames_per_scene, repeats=args.repeats,
                                 seed=args.seed, progress=not args.quiet, outputs=outputs,
-                                device=device, frames_out=frames, ensemble=args.ensemble)
+                                device=device, frames_out=frames, ensemble=args.ensemble,
+                                keep_going=not getattr(args, "debug", False))
     else:
         from spikesim.io import resolve_dataset
 
         data = resolve_dataset(args.data, args.split)
         frames = evaluate.frames_from_dataset(data, args.context, args.per_sequence)
         result = evaluate.run(frames, methods, repeats=args.repeats, progress=not args.quiet,
-                              outputs=outputs, device=device, ensemble=args.ensemble)
+                              outputs=outputs, device=device, ensemble=args.ensemble,
+                              keep_going=not getattr(args, "debug", False))
     command = "spikejdd " + " ".join(shlex.quote(a) for a in args.argv)
     paths = evaluate.write_report(result, methods, args.out, command=command, frames=frames,
                                   outputs=outputs, panels=args.panels)
-    for m in methods:
+    for m in evaluate.succeeded(result, methods):
         e = result["summary"][m]["all"]
         used = f"  {evaluate._windows(e)} readouts" if e.get("windows") else ""
         print(f"{m:32s} PSNR[linear] {e['PSNR[linear]']:6.2f} dB  "
               f"SSIM-gauss11[linear] {e['SSIM-gauss11[linear]']:.4f}  "
               f"{e['ms_per_frame']:8.1f} ms/frame{used}")
     print("wrote " + ", ".join(str(p) for p in paths))
-    return 0
+    for message in (result.get("failed") or {}).values():
+        print(f"spikejdd evaluate: error: {message} (the other methods' results are in "
+              f"{paths[1]}; --debug stops at it with the traceback)", file=sys.stderr)
+    return 1 if result.get("failed") else 0
 
 
 def _configure(args) -> str:
@@ -466,6 +471,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = argv  # recorded in reports as the command that made them
+    args.debug = debug
     label = f"spikejdd {args.command}" if args.command else "spikejdd"
     return run_guarded(label, lambda: _dispatch(parser, args), debug=debug)
 

@@ -30,7 +30,7 @@ from tqdm import tqdm
 from spikejdd.metrics import score
 from spikejdd.registry import call_method, get_method
 from spikejdd.runtime import describe_machine, machine_info
-from spikesim.errors import bad_value
+from spikesim.errors import SpikeSimError, bad_value
 from spikesim.srgb import linear_to_srgb8
 
 __all__ = ["Frame", "frames_from_dataset", "frames_from_simulation", "run", "sweep",
@@ -192,7 +192,7 @@ DEFAULT_VIEWS = "each method's default"
 
 def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: bool = True,
         outputs: dict | None = None, device: str | None = None,
-        ensemble: int | None = None) -> dict:
+        ensemble: int | None = None, keep_going: bool = False) -> dict:
     """Score and time every method on every frame; see the module doc for the timing rule.
 
     When ``outputs`` is a dict it receives each reconstruction under
@@ -202,6 +202,11 @@ def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: boo
     methods that take them (torch methods); torch threads
     are a per-process setting (:func:`spikejdd.runtime.set_threads`).  Each
     row records the readouts the method used (``window``) when it says.
+
+    A method that fails (raises, or returns a wrong shape, dtype or
+    non-finite values) stops the run, unless ``keep_going``: then its error
+    goes to ``result["failed"][method]`` (one line), it has no rows, and the
+    other methods go on.  Every method failing is an error either way.
     """
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise bad_value("repeats", repeats, "an integer >= 1")
@@ -213,31 +218,60 @@ def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: boo
     opts = {} if device is None else {"device": device}
     if ensemble is not None:
         opts["ensemble"] = ensemble  # checked by each call (spikejdd.registry.Method)
-    rows = []
+    rows: list[dict] = []
+    failed: dict[str, str] = {}
     bar = tqdm(total=len(frames) * len(methods), desc="evaluate", disable=not progress)
-    for m, fn in fns.items():
-        bar.set_postfix_str(f"{m} (warm-up)")
-        f0 = frames[0]
-        call_method(fn, f0.spikes, f0.cfa, f0.center, rate=f0.rate, **opts)  # not timed
-        bar.set_postfix_str(m)
-        for i, f in enumerate(frames):
-            out, sec = _time_call(lambda f=f, fn=fn: call_method(
-                fn, f.spikes, f.cfa, f.center, rate=f.rate, **opts), repeats)
+    for k, (m, fn) in enumerate(fns.items()):
+        try:
+            rows += _method_rows(m, fn, frames, repeats, opts, outputs, bar)
+        except SpikeSimError as exc:  # the method's failure (its own, or its output's)
+            if not keep_going or len(fns) == 1:
+                raise
+            failed[m] = str(exc).replace(" (--debug shows the traceback)", "")
+            if len(failed) == len(fns):
+                raise SpikeSimError("every method failed: " + "; ".join(failed.values())) from exc
             if outputs is not None:
-                outputs[(m, i)] = out
-            rows.append({"method": m, "sequence": f.sequence, "readout": f.readout,
-                         **f.group, "context": int(f.spikes.shape[0]),
-                         "window": fn.window_for(int(f.spikes.shape[0])),
-                         "seconds": sec, **score(out, f.gt)})
-            bar.update()
+                for i in range(len(frames)):
+                    outputs.pop((m, i), None)
+            bar.update((k + 1) * len(frames) - bar.n)
     bar.close()
-    result = {"rows": rows, "summary": summarize(rows, methods),
+    ok = [m for m in fns if m not in failed]
+    result = {"rows": rows, "summary": summarize(rows, ok),
               "runtime": {"device": device or "cpu", "repeats": repeats,
                           "ensemble": ensemble or DEFAULT_VIEWS}}
+    if failed:
+        result["failed"] = failed
     for key in ("noise", "motion"):
         if any(key in r for r in rows):
-            result[f"by_{key}"] = summarize(rows, methods, by=(key,))
+            result[f"by_{key}"] = summarize(rows, ok, by=(key,))
     return result
+
+
+def succeeded(result: dict, methods: list[str]) -> list[str]:
+    """The ``methods`` that did not fail in ``result`` (see ``keep_going`` of :func:`run`)."""
+    failed = result.get("failed") or {}
+    return [m for m in methods if m not in failed]
+
+
+def _method_rows(m: str, fn, frames: list[Frame], repeats: int, opts: dict,
+                 outputs: dict | None, bar) -> list[dict]:
+    """One method's rows of :func:`run`: an untimed warm-up call, then every frame."""
+    bar.set_postfix_str(f"{m} (warm-up)")
+    f0 = frames[0]
+    call_method(fn, f0.spikes, f0.cfa, f0.center, rate=f0.rate, **opts)  # not timed
+    bar.set_postfix_str(m)
+    rows = []
+    for i, f in enumerate(frames):
+        out, sec = _time_call(lambda f=f, fn=fn: call_method(
+            fn, f.spikes, f.cfa, f.center, rate=f.rate, **opts), repeats)
+        if outputs is not None:
+            outputs[(m, i)] = out
+        rows.append({"method": m, "sequence": f.sequence, "readout": f.readout,
+                     **f.group, "context": int(f.spikes.shape[0]),
+                     "window": fn.window_for(int(f.spikes.shape[0])),
+                     "seconds": sec, **score(out, f.gt)})
+        bar.update()
+    return rows
 
 
 def summarize(rows: list[dict], methods: list[str], by: tuple[str, ...] = ()) -> dict:
@@ -277,10 +311,10 @@ GPN_RANGE = {"sigma_g": (0.0, 15.0), "sigma_p": (0.0, 1.0)}
 def sweep(methods: list[str], size=(64, 96), context: int = 41, frames_per_scene: int = 2,
           repeats: int = 3, seed: int = 0, progress: bool = True, outputs: dict | None = None,
           device: str | None = None, frames_out: list | None = None,
-          ensemble: int | None = None) -> dict:
+          ensemble: int | None = None, keep_going: bool = False) -> dict:
     """Table-1-shaped sweep on sets simulated on the fly (see module doc).
 
-    ``outputs`` and ``device`` as in :func:`run`; a ``frames_out`` list
+    ``outputs``, ``device`` and ``keep_going`` as in :func:`run`; a ``frames_out`` list
     receives the simulated frames (for :func:`write_report`'s image panels).
     """
     import spikesim as ss
@@ -309,10 +343,10 @@ def sweep(methods: list[str], size=(64, 96), context: int = 41, frames_per_scene
             group={"set": set_name, "noise": label, "motion": motion or "object",
                    "sigma_g": sg, "sigma_p": sp})
     result = run(frames, methods, repeats=repeats, progress=progress, outputs=outputs,
-                 device=device, ensemble=ensemble)
+                 device=device, ensemble=ensemble, keep_going=keep_going)
     if frames_out is not None:
         frames_out.extend(frames)
-    result["table"] = summarize(result["rows"], methods, by=("set", "noise"))
+    result["table"] = summarize(result["rows"], succeeded(result, methods), by=("set", "noise"))
     result["config"] = {"size": list(size), "context": context,
                         "frames_per_scene": frames_per_scene,
                         "repeats": repeats, "seed": seed, "sets": SWEEP_SETS,
@@ -433,7 +467,8 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
     (:func:`spikejdd.runtime.machine_info`), the mean table, tables per noise
     label and per motion, and — given ``frames`` and the ``outputs`` of
     :func:`run` — up to ``panels`` image panels (ground truth and every
-    method on the same crop).  Returns the paths written.
+    method on the same crop).  Methods in ``result["failed"]`` are listed
+    with their errors and left out of the tables.  Returns the paths written.
     """
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
@@ -441,6 +476,8 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
     machine["description"] = describe_machine(machine)
     result = dict(result, methods=methods, machine=machine, command=command,
                   conventions=CONVENTIONS)
+    failed = result.get("failed") or {}
+    methods = succeeded(result, methods)  # a failed method has no rows
     paths = [stem.with_suffix(".json"), stem.with_suffix(".md"), stem.with_suffix(".png")]
     paths[0].write_text(json.dumps(result, indent=1, default=float))
     rt = result.get("runtime") or {}
@@ -451,7 +488,11 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
            f"Device: {rt.get('device', 'cpu')}; torch threads per process: "
            f"{machine.get('torch_threads', '-')}; self-ensemble of learned methods: "
            f"{rt.get('ensemble', DEFAULT_VIEWS)}.", "",
-           f"Conventions: {CONVENTIONS}.", "", "## Mean over all frames", ""]
+           f"Conventions: {CONVENTIONS}.", ""]
+    if failed:
+        md += ["## Methods that failed", "", "These have no results below:", ""]
+        md += [f"- `{m}`: {msg}" for m, msg in failed.items()] + [""]
+    md += ["## Mean over all frames", ""]
     md += _md_table(result["summary"], methods)
     if "by_noise" in result:
         md += _group_table(result["by_noise"], methods, "By noise label")

@@ -43,7 +43,7 @@ from spikesim.analysis.calibration_config import (
     config_with,
 )
 from spikesim.analysis.capture import as_capture, pixel_counts, pixel_intervals
-from spikesim.analysis.regions import check_regions, detect_regions, motion_score
+from spikesim.analysis.regions import check_regions, detect_regions, flat_names, motion_score
 from spikesim.analysis.report import AnalysisResult
 from spikesim.errors import bad_value
 
@@ -86,10 +86,10 @@ def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
         return dark, flats, "flat regions"
     if dark is not None or flats:
         change = (second - first) * (n / 2)
-        for i, f in enumerate(flats):
+        for name, f in zip(flat_names(flat_masks, len(flats)), flats, strict=True):
             r, limit = motion_score(f, change)
             if r > limit:
-                notes.append(f"flat_masks[{i}] does not look static: its pixels' count changes "
+                notes.append(f"{name} does not look static: its pixels' count changes "
                              f"between the capture's halves are correlated between neighbours "
                              f"(r = {r:.3g} > {limit:.3g}); its intervals inflate the fitted "
                              "temporal noise")
@@ -221,7 +221,8 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
                                      region_notes)
     levels = _levels(flat_levels, flats)
     mom = pixel_intervals(cap, 0, n, progress=progress)
-    params, diag, lv, hot = fit_parameters(rate, mom, n, dark, flats, levels, cfg)
+    names = flat_names(flat_masks if detected is False else None, len(flats))
+    params, diag, lv, hot = fit_parameters(rate, mom, n, dark, flats, levels, cfg, names)
     notes = region_notes + list(diag.pop("notes"))
     sensor = _sensor(cap, params, notes, reset)
     fit = None

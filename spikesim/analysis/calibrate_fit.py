@@ -165,14 +165,14 @@ def flat_samples(rate, flats, dark, hot, b_mean: float, t: int):
     return flat_px, hot_terms
 
 
-def _check_flat_means(means, flats, rate, t):
-    for i, (mu, f) in enumerate(zip(means, flats, strict=True)):
+def _check_flat_means(means, flats, rate, t, names):
+    for name, mu, f in zip(names, means, flats, strict=True):
         if np.median(rate[f]) >= SATURATED_RATE:
-            raise bad_value(f"flat region {i}", f"median rate {float(np.median(rate[f])):.4g}",
+            raise bad_value(name, f"median rate {float(np.median(rate[f])):.4g}",
                             f"a region below saturation (median rate < {SATURATED_RATE} spikes "
                             "per readout): a saturated region carries no gain information")
         if mu * t < MIN_FLAT_SPIKES:
-            raise bad_value(f"flat region {i}", f"{mu * t:.3g} spikes per pixel",
+            raise bad_value(name, f"{mu * t:.3g} spikes per pixel",
                             f"at least {MIN_FLAT_SPIKES} spikes per pixel (a longer capture or "
                             "brighter region)")
 
@@ -250,7 +250,7 @@ def unmix(cv_a2, cv_b2, big_r, kappa2, sigma_q2, config, notes):
             "charge_noise_electrons": math.sqrt(sigma_q2) * e}
 
 
-def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config):
+def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=None):
     """Fit the model to per-pixel rates and interval moments (see module notes).
 
     Parameters
@@ -262,6 +262,9 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config):
     levels : sequence of float or None
         Radiance of each flat region (1 = full scale), or None (unknown).
     config : :class:`spikesim.analysis.calibration_config.CalibrationConfig`
+    names : list of str or None
+        What errors call each flat region (:func:`spikesim.analysis.regions.flat_names`;
+        None: ``flat region i``).
 
     Returns ``(params, diagnostics, used_levels, hot_mask)``; ``params`` are
     keyword arguments of :class:`spikesim.noise.PhysicalNoise` plus
@@ -291,7 +294,8 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config):
         cv_b2 = DARK_FALLBACK["dark_current_spread"] ** 2
     flat_px, hot_terms = flat_samples(rate, flats, dark, hot, b_mean, t)
     means = np.array([x.mean() - h[0] for x, h in zip(flat_px, hot_terms, strict=True)])
-    _check_flat_means(means, flats, rate, t)
+    _check_flat_means(means, flats, rate, t,
+                      names or [f"flat region {i}" for i in range(len(flats))])
     lv, big_r, b_mean = fit_response(means, levels, b_mean, dark_known, notes)
     if not big_r > 0:
         raise bad_value("flat regions", means.tolist(), "rates increasing with radiance")

@@ -63,6 +63,25 @@ def as_mask(mask, shape: tuple[int, int], name: str,
     return arr.astype(bool)
 
 
+def _is_label_image(arr) -> bool:
+    return arr is not None and arr.ndim == 2 and arr.dtype.kind in "iu"
+
+
+def flat_names(flat_masks, count: int) -> list[str]:
+    """The names errors and notes give the ``count`` flat regions: ``flat_masks
+    label k`` for an integer label image (labels in increasing order, the
+    order of ``flat_levels``), ``flat_masks[i]`` for masks, ``detected flat
+    region i`` where ``flat_masks`` is None (the regions were detected)."""
+    if flat_masks is None:
+        return [f"detected flat region {i}" for i in range(count)]
+    arr = np.asarray(flat_masks) if not isinstance(flat_masks, (list, tuple)) else None
+    if _is_label_image(arr):
+        return [f"flat_masks label {k}" for k in sorted(set(np.unique(arr).tolist()) - {0})]
+    if arr is not None and arr.ndim == 2:
+        return ["flat_masks"]
+    return [f"flat_masks[{i}]" for i in range(count)]
+
+
 def check_regions(dark_mask, flat_masks, shape) -> tuple[np.ndarray | None, list[np.ndarray]]:
     """Validate the user's masks: right shape, non-empty, no overlap."""
     dark = None if dark_mask is None else as_mask(dark_mask, shape, "dark_mask")
@@ -71,7 +90,7 @@ def check_regions(dark_mask, flat_masks, shape) -> tuple[np.ndarray | None, list
     flats: list[np.ndarray] = []
     if flat_masks is not None:
         arr = np.asarray(flat_masks) if not isinstance(flat_masks, (list, tuple)) else None
-        if arr is not None and arr.ndim == 2 and arr.dtype.kind in "iu":
+        if _is_label_image(arr):
             if arr.shape != tuple(shape):
                 raise bad_value("flat_masks.shape", arr.shape,
                                 f"the capture's (H, W) = {tuple(shape)}")

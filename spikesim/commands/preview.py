@@ -11,6 +11,9 @@ from spikesim.commands._io_common import add_source_options, source_from_args
 
 __all__ = ["register", "run"]
 
+#: TFP window (readouts) when ``--window`` is not given and the stream is longer.
+DEFAULT_WINDOW = 41
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -26,8 +29,8 @@ def register(subparsers) -> None:
     p.add_argument("--readout", type=int, default=None,
                    help="readout to show (PNG) or first readout (GIF); default: the middle / "
                         "start of the stream")
-    p.add_argument("--window", type=int, default=41,
-                   help="TFP window in readouts (default 41)")
+    p.add_argument("--window", type=int, default=None,
+                   help="TFP window in readouts (default 41, or the whole stream when shorter)")
     p.add_argument("--rate", type=float, default=None,
                    help="spikes per readout at full scale (default: from the file, else 0.6)")
     p.add_argument("--frames", type=int, default=24, help="GIF: number of frames (default 24)")
@@ -61,20 +64,22 @@ def run(args) -> int:
     check_real("--fps", args.fps, 0, 100, low_open=True, unit="GIF frames per second")
     if args.rate is not None:
         check_real("--rate", args.rate, 0, 1, low_open=True, unit="spikes per readout")
-    check_int("--window", args.window, 1, unit="readouts")
+    if args.window is not None:
+        check_int("--window", args.window, 1, unit="readouts")
     if not args.out.lower().endswith((".png", ".gif")):
         raise bad_value("--out", args.out, "a path ending in .png or .gif")
     src = source_from_args(args, args.path)
     n = src.n_readouts
-    if args.window > n:
-        raise bad_value("--window", args.window, f"at most the stream's {n} readouts")
+    window = min(DEFAULT_WINDOW, n) if args.window is None else args.window
+    if window > n:
+        raise bad_value("--window", window, f"at most the stream's {n} readouts")
     if args.readout is not None:
         check_int("--readout", args.readout, 0, n - 1, unit="readout index")
     if args.out.lower().endswith(".gif"):
-        readouts = _gif_readouts(n, args.readout, args.frames, args.step, args.window)
+        readouts = _gif_readouts(n, args.readout, args.frames, args.step, window)
     else:
         readouts = [n // 2 if args.readout is None else args.readout]
-    frames = render_frames(src, readouts, args.method, args.window, args.rate,
+    frames = render_frames(src, readouts, args.method, window, args.rate,
                            progress=not args.quiet and len(readouts) > 1)
     save_image(args.out, frames, fps=args.fps)
     print(f"wrote {args.out} ({len(frames)} frame{'s' if len(frames) > 1 else ''}, "

@@ -28,6 +28,7 @@ import json
 import math
 import multiprocessing as mp
 import os
+import sys
 import tempfile
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -193,6 +194,10 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
                     build_index(out / split)
         with contextlib.suppress(Exception):
             _write_summary(out / "build_summary.json", summary)
+        if progress:
+            bar.write(f"stopped: {summary.done} of {len(pending)} sequences to make were "
+                      f"finished and kept in {out}; running the same build again makes the "
+                      f"other {len(pending) - summary.done - summary.failed}", file=sys.stderr)
         raise
     finally:
         bar.close()

@@ -174,7 +174,8 @@ def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Pa
     final = Path(final)
     parent = final.parent if str(final.parent) else Path(".")
     if not parent.is_dir():
-        raise SpikeSimFileError(f"output folder {str(parent)!r} does not exist")
+        raise SpikeSimFileError(f"output folder {str(parent)!r} does not exist: create it "
+                                "first (mkdir -p), or give a path in an existing folder")
     if final.is_dir():
         raise SpikeSimFileError(f"output path {str(final)!r} is a folder, expected a file name")
     if not overwrite and final.exists():

@@ -276,6 +276,9 @@ def boom(spikes, cfa, center):
 
 def needs_gain(spikes, cfa, center, gain):
     return np.zeros(spikes.shape[1:] + (3,))
+
+def nan_out(spikes, cfa, center):
+    return np.full(spikes.shape[1:] + (3,), np.nan)
 '''
 
 
@@ -289,6 +292,41 @@ def test_a_failing_user_method_is_named_not_reported_as_a_bug(data39, tmp_path, 
         err = capsys.readouterr().err.strip()
         assert f"method 'failing_meth:{fn}' failed" in err and words in err, err
         assert len(err.splitlines()) == 1
+    sys.modules.pop("failing_meth", None)
+
+
+def test_evaluate_keeps_the_results_of_methods_beside_a_failing_one(data39, tmp_path, capsys,
+                                                                    monkeypatch):
+    """One failing method among several: the others are scored and reported, the
+    failure is listed in the report and on stderr, and the exit status is 1."""
+    (tmp_path / "failing_meth.py").write_text(FAILING_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    out = tmp_path / "r" / "report"
+    methods = "failing_meth:boom,tfp+bilinear,failing_meth:nan_out,tfi+bilinear"
+    args = ["evaluate", "--data", str(data39), "--out", str(out), "--quiet", "--repeats", "1"]
+    assert main(args + ["--methods", methods]) == 1
+    cap = capsys.readouterr()
+    err = cap.err.strip().splitlines()
+    assert len(err) == 2 and "boom inside my method" in err[0] and "non-finite" in err[1], err
+    assert all(str(out.with_suffix(".md")) in line for line in err)
+    assert "tfp+bilinear" in cap.out and "tfi+bilinear" in cap.out and "boom" not in cap.out
+    result = json.loads(out.with_suffix(".json").read_text())
+    assert sorted(result["failed"]) == ["failing_meth:boom", "failing_meth:nan_out"]
+    assert sorted(result["summary"]) == ["tfi+bilinear", "tfp+bilinear"]
+    assert {r["method"] for r in result["rows"]} == {"tfi+bilinear", "tfp+bilinear"}
+    md = out.with_suffix(".md").read_text()
+    assert "## Methods that failed" in md and "`failing_meth:boom`: method" in md
+    assert "| failing_meth:boom |" not in md and "| tfp+bilinear |" in md
+    # every method failing is one error and no report
+    out2 = tmp_path / "r2" / "report"
+    args2 = ["evaluate", "--data", str(data39), "--out", str(out2), "--quiet"]
+    assert main(args2 + ["--methods", "failing_meth:boom,failing_meth:nan_out"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("spikejdd evaluate: error: every method failed:") and "nan_out" in err
+    assert len(err.splitlines()) == 1 and not out2.parent.exists()
+    # --debug stops at the first failure, with its traceback
+    with pytest.raises(Exception, match="boom inside my method"):
+        main(args + ["--methods", methods, "--debug"])
     sys.modules.pop("failing_meth", None)
 
 

@@ -144,10 +144,16 @@ def test_bad_inputs(capture):
     # an all-saturated region: every pixel fires every readout
     sat = spikes.copy()
     sat[:, flats[2]] = 1
-    with pytest.raises(SpikeSimValueError, match="flat region 2.*saturation"):
+    with pytest.raises(SpikeSimValueError, match=r"flat_masks\[2\].*saturation"):
         calibrate(sat, dark_mask=dark, flat_masks=flats, check=False)
+    # the same as a label image: the error names the label, not the position
+    labels = np.zeros(dark.shape, np.int32)
+    for k, f in zip((3, 7, 9), flats, strict=True):
+        labels[f] = k
+    with pytest.raises(SpikeSimValueError, match="flat_masks label 9.*saturation"):
+        calibrate(sat, dark_mask=dark, flat_masks=labels, check=False)
     # a region too dark for this capture length (dark pixels: ~4 spikes in 1200 readouts)
-    with pytest.raises(SpikeSimValueError, match="flat region 0.*at least 10 spikes per pixel"):
+    with pytest.raises(SpikeSimValueError, match=r"flat_masks\[0\].*at least 10 spikes per pixel"):
         calibrate(spikes, flat_masks=[dark], check=False)
     # nothing flat to find
     noise = (np.random.default_rng(0).random((1200, 16, 16)) < np.linspace(

@@ -124,6 +124,21 @@ def test_preview_mono_dat_is_grey(tmp_path):
     assert img[:, :8].min() == 255 and img[:, 8:].max() == 0
 
 
+def test_preview_of_a_stream_shorter_than_the_default_window(tmp_path, capsys):
+    """The default window is 41 readouts or the whole stream when shorter; an
+    explicit window longer than the stream is named."""
+    spikes = np.zeros((10, 8, 16), np.uint8)
+    spikes[::2, :, :8] = 1
+    write_dat(tmp_path / "m.dat", spikes)
+    base = ["preview", str(tmp_path / "m.dat"), "--height", "8", "--width", "16",
+            "--rate", "0.5"]
+    assert main(base + ["--out", str(tmp_path / "m.png")]) == 0
+    img = np.asarray(Image.open(tmp_path / "m.png")).astype(int)
+    assert img[:, :8].min() == 255 and img[:, 8:].max() == 0
+    assert main(base + ["--out", str(tmp_path / "n.png"), "--window", "11"]) == 1
+    assert "--window=11" in capsys.readouterr().err and not (tmp_path / "n.png").exists()
+
+
 def test_convert_to_sjdd_layout(tmp_path, h5file, capsys):
     path, _ = h5file
     assert main(["convert", str(path), str(tmp_path / "train"), "--sjdd", "--subset", "s1",

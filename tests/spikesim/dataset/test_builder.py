@@ -208,6 +208,29 @@ def test_interrupted_build_counts_and_indexes_files_finished_unreported(tmp_path
     assert len(index["sequences"]) == 2
 
 
+def test_interrupted_build_says_what_it_kept(tmp_path, monkeypatch, capsys):
+    """With progress shown, a stopped build says on stderr how many sequences
+    it kept and that the same build makes the rest."""
+    from spikesim.dataset import build
+
+    real = build.run_task
+    made = []
+
+    def stop_at_third(task, out, *args):
+        if len(made) == 2:
+            raise KeyboardInterrupt
+        made.append(task["file"])
+        return real(task, out, *args)
+
+    monkeypatch.setattr(build, "run_task", stop_at_third)
+    manifest = parse_manifest(small_manifest(count=5))
+    with pytest.raises(KeyboardInterrupt):
+        build_dataset(manifest, tmp_path / "ds", workers=1, progress=True)
+    err = capsys.readouterr().err
+    assert f"stopped: 2 of 5 sequences to make were finished and kept in {tmp_path / 'ds'}" in err
+    assert "makes the other 3" in err
+
+
 @pytest.mark.parametrize(
     "mutate,where",
     [
