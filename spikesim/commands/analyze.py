@@ -146,7 +146,8 @@ def register(subparsers) -> None:
     s.add_argument("--size", default="64x64")
     s.add_argument("--readouts", type=int, default=10_000)
     s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--name", default="calibration", help="file stem (default calibration)")
+    s.add_argument("--name", default="calibration_accuracy",
+                   help="file stem (default calibration_accuracy)")
     s.add_argument("--no-progress", dest="progress", action="store_false")
     s.set_defaults(func=_run_accuracy)
 
