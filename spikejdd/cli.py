@@ -19,6 +19,7 @@ import os
 import shlex
 import sys
 
+from spikesim._validate import check_int
 from spikesim.cli_guard import (
     OneLineParser,
     check_cli_numbers,
@@ -176,6 +177,7 @@ def _evaluate(args) -> int:
         return 2
     for m in methods:  # every name checked before any work
         get_method(m)
+    check_int("--panels", args.panels, 0, unit="image panels")
     device = _configure(args)
     outputs: dict = {}
     if args.sweep:
@@ -309,6 +311,30 @@ def _centers(text: str | None, default: list[int]) -> list[int]:
 
 
 def _reconstruct(args) -> int:
+    """``spikejdd reconstruct``: on any failure, the PNGs this run wrote are
+    removed again (and the output folder, when this run made it)."""
+    import contextlib
+    from pathlib import Path
+
+    out = Path(args.out)
+    made_folder = not out.exists()
+    written: list = []
+    try:
+        _reconstruct_into(args, written)
+    except BaseException:
+        for path in written:
+            path.unlink(missing_ok=True)
+        if made_folder:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only when empty
+        raise
+    print(f"wrote {len(written)} sRGB PNG(s) to {out}")
+    return 0
+
+
+def _reconstruct_into(args, written: list) -> None:
+    """Reconstruct ``args.input`` (every sequence of a dataset folder), appending
+    each PNG written to ``written``."""
     from pathlib import Path
 
     from tqdm import tqdm
@@ -349,14 +375,20 @@ def _reconstruct(args) -> int:
         with open_dataset(src, args.split) as ds:
             files = [seq.path for seq in ds]
         for file in files:
-            _reconstruct(argparse.Namespace(**{**vars(args), "input": str(file), "split": None}))
-        return 0
+            _reconstruct_into(argparse.Namespace(**{**vars(args), "input": str(file),
+                                                    "split": None}), written)
+        return
     else:
+        from spikesim.cfa import normalize_cfa
         from spikesim.io import open_h5
 
         seq = open_h5(resolve_dataset(src, args.split))
         n = seq.n_readouts
-        cfa = args.cfa or seq.cfa
+        if args.cfa is not None and normalize_cfa(args.cfa) != normalize_cfa(seq.cfa):
+            raise bad_value("--cfa", args.cfa, f"{seq.cfa or 'mono'}, the pattern {src.name} "
+                            "records, or leave --cfa out (it is for .dat captures, which "
+                            "record none)")
+        cfa = seq.cfa
         rate = args.rate or float((seq.meta.get("sensor") or {}).get("full_scale_rate", 0.6))
         centers = _centers(args.centers, [int(g) for g in seq.gt_index] or [n // 2])
 
@@ -366,7 +398,7 @@ def _reconstruct(args) -> int:
 
     out.mkdir(parents=True, exist_ok=True)
     length = min(args.context or 41, n)
-    written, used = [], {}
+    used = {}
     bar = tqdm(total=len(centers) * len(methods), desc="reconstruct", disable=args.quiet)
     for c in centers:
         start, _ = window_bounds(n, c, length)
@@ -390,8 +422,6 @@ def _reconstruct(args) -> int:
     bar.close()
     for name, w in used.items():
         print(f"{name}: {w if w is not None else '?'} readouts used (of {length} given)")
-    print(f"wrote {len(written)} sRGB PNG(s) to {out}")
-    return 0
 
 
 def _slug(name: str) -> str:

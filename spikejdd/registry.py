@@ -364,6 +364,17 @@ def _check_spikes(spikes) -> np.ndarray:
     return arr
 
 
+def _check_bits(spikes) -> None:
+    """Integer spikes must be 0/1 (a full pass over the array: done once per
+    :func:`reconstruct` call, outside the timed calls of an evaluation)."""
+    arr = np.asarray(spikes)
+    if arr.dtype != np.bool_ and arr.dtype.kind in "iu" and arr.size:
+        low, high = int(arr.min()), int(arr.max())
+        if low < 0 or high > 1:
+            raise bad_value("spikes", f"values from {low} to {high}",
+                            "0/1 spikes (unpacked bits, e.g. SpikeStream.unpack())")
+
+
 def call_method(method: Method, spikes, cfa, center, **options) -> np.ndarray:
     """Call ``method`` under the protocol and check its output (shape, finite values)."""
     arr = _check_spikes(spikes)
@@ -374,9 +385,11 @@ def call_method(method: Method, spikes, cfa, center, **options) -> np.ndarray:
         raise SpikeSimValueError(
             f"method {method.name!r} returned shape {out.shape}, expected {arr.shape[1:] + (3,)}"
         )
-    if out.dtype.kind not in "fiu":
+    if out.dtype.kind != "f":
+        hint = (" (an 8-bit image? return spikesim.srgb.srgb_to_linear(image / 255))"
+                if out.dtype.kind in "iub" else "")
         raise SpikeSimTypeError(f"method {method.name!r} returned dtype {out.dtype}, "
-                                "expected float linear RGB")
+                                f"expected float linear RGB{hint}")
     bad = out.size - int(np.count_nonzero(np.isfinite(out)))
     if bad:
         raise SpikeSimValueError(f"method {method.name!r} returned {bad} non-finite values "
@@ -420,4 +433,6 @@ def reconstruct(
     >>> rgb.shape, rgb.dtype
     ((16, 16, 3), dtype('float64'))
     """
-    return call_method(METHODS.get(method), spikes, cfa, center, rate=rate, **options)
+    fn = METHODS.get(method)
+    _check_bits(spikes)
+    return call_method(fn, spikes, cfa, center, rate=rate, **options)

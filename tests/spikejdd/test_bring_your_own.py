@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -233,6 +234,9 @@ def test_cli_one_line_errors(data39, tmp_path, capsys):
     assert "window=41" in capsys.readouterr().err
     assert main(args + ["--methods", "nosuchmod.x:fn"]) == 1
     assert "nosuchmod" in capsys.readouterr().err
+    assert main(args + ["--methods", "tfp+bilinear", "--panels", "-1"]) == 1
+    assert "--panels=-1 is invalid" in capsys.readouterr().err
+    assert not (tmp_path / "x.md").exists()
 
 
 def test_reconstruct_dat_capture_writes_side_by_side_panels(tmp_path, capsys):
@@ -339,10 +343,30 @@ def test_reconstruct_refuses_what_it_would_ignore_or_cannot_do(data39, tmp_path,
     assert main(["reconstruct", seq, "--methods", "tfp+bilinear", "--centers", "10:5",
                  "--out", out, "--quiet"]) == 1
     assert "--centers" in capsys.readouterr().err
-    assert main(["reconstruct", seq, "--cfa", "mono", "--methods", "sjdd", "--centers", "19",
+    # a --cfa that contradicts the file's recorded pattern is refused
+    assert main(["reconstruct", seq, "--cfa", "BGGR", "--methods", "tfp+bilinear",
                  "--out", out, "--quiet"]) == 1
     err = capsys.readouterr().err
+    assert "--cfa='BGGR'" in err and "RGGB, the pattern fan.h5 records" in err
+    assert main(["reconstruct", seq, "--cfa", "rggb", "--methods", "tfp+bilinear",
+                 "--out", str(tmp_path / "same"), "--quiet"]) == 0  # the same pattern is fine
+    capsys.readouterr()
+    # a method that cannot run on the input: nothing is left written, even the PNGs of
+    # the methods before it, and the folder this run made is gone
+    mono = tmp_path / "mono.h5"
+    write_h5(mono, ss.simulate(ss.scenes.procedural("fan", size=(16, 24)),
+                               ss.Sensor(height=16, width=24, cfa=None), n_readouts=39))
+    assert main(["reconstruct", str(mono), "--methods", "tfp+bilinear,sjdd", "--centers",
+                 "9,19", "--out", out, "--quiet"]) == 1
+    err = capsys.readouterr().err
     assert "'sjdd'" in err and "monochrome" in err and "None" not in err
+    assert not Path(out).exists()
+    Path(out).mkdir()
+    (Path(out) / "mine.txt").write_text("kept")
+    assert main(["reconstruct", str(mono), "--methods", "tfp+bilinear,sjdd", "--centers",
+                 "9,19", "--out", out, "--quiet"]) == 1
+    assert [f.name for f in Path(out).iterdir()] == ["mine.txt"]  # the user's folder stays
+    capsys.readouterr()
     bad = tmp_path / "bad.pt"
     bad.write_bytes(b"not a checkpoint")
     assert main(["reconstruct", seq, "--methods", "sjdd", "--weights", str(bad), "--centers",

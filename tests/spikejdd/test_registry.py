@@ -65,6 +65,14 @@ def test_third_party_method_registers_and_validates(stream):
         with pytest.raises(SpikeSimValueError,
                            match=r"method 'test-grey' returned \d+ non-finite values"):
             sj.reconstruct(s.unpack(), s.cfa, "test-grey")
+        # an 8-bit image is refused with the conversion to make
+        sj.register_method("test-grey", lambda sp, *a, **k: np.full(sp.shape[1:] + (3,), 200,
+                                                                    np.uint8), overwrite=True)
+        with pytest.raises(SpikeSimTypeError, match=r"dtype uint8.*8-bit image.*srgb_to_linear"):
+            sj.reconstruct(s.unpack(), s.cfa, "test-grey")
+        # spikes other than 0/1 are refused before any method runs
+        with pytest.raises(SpikeSimValueError, match="spikes=.*from 0 to 2.*0/1 spikes"):
+            sj.reconstruct(s.unpack() * 2, s.cfa, "tfp+bilinear")
     finally:
         sj.unregister_method("test-grey")
     with pytest.raises(SpikeSimValueError, match="lower-case"):
