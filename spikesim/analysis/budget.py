@@ -83,7 +83,7 @@ def psnr(x: np.ndarray, ref: np.ndarray) -> float:
 def make_reconstructor(method="tfp", window: int = 41):
     """``fn(spikes, cfa, center, rate)`` for a method name or callable (see module notes)."""
     if callable(method):
-        return method, getattr(method, "__name__", "callable")
+        return _rate_if_declared(method), getattr(method, "__name__", "callable")
     if method == "tfp":
         return (lambda s, cfa, c, rate: tfp(s, c, window, rate)), f"tfp (w={window})"
     if method == "tfi":
@@ -104,6 +104,20 @@ def make_reconstructor(method="tfp", window: int = 41):
                         "spikejdd adds its methods)")
     raise bad_value("method", method, "'tfp', 'tfi', a callable, or a method an installed "
                     "reconstruction package offers (" + "; ".join(refusals) + ")")
+
+
+def _rate_if_declared(fn):
+    """``fn`` called with ``rate`` only when it declares it (or ``**kwargs``), as
+    spikejdd's method protocol does: ``fn(spikes, cfa, center)`` works too."""
+    import inspect
+
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):  # no signature to read (a builtin): pass rate
+        return fn
+    if any(p.name == "rate" or p.kind is p.VAR_KEYWORD for p in params):
+        return fn
+    return lambda s, cfa, c, rate: fn(s, cfa, c)
 
 
 def _score(stream, clean: bool, fn, centers, sensor):

@@ -95,10 +95,12 @@ def procedural(
         if motion == "static" and speed is not None:
             raise bad_value("speed", speed, "None for motion='static'")
         speed = DEFAULT_SPEED_PX_S if speed is None else speed
+        _check_options(MovingPicture, options, name)
         return MovingPicture(name, motion, size, speed, **options)
     desc, cls, takes_speed = _SPECIAL[name]
     if motion is not None:
         raise bad_value("motion", motion, f"None for scene {name!r} (its motion is built in)")
+    _check_options(cls, options, name)
     if takes_speed:
         options["speed"] = DEFAULT_SPEED_PX_S if speed is None else speed
     elif speed is not None:
@@ -106,3 +108,20 @@ def procedural(
     if name in ("fan", "disk"):
         options["pattern"] = name
     return cls(size, **options)
+
+
+def _check_options(cls, options: dict, name: str) -> None:
+    """Refuse the user's keywords the scene's class does not take, naming those it does
+    (``procedural``'s own arguments are not among them)."""
+    import inspect
+
+    params = inspect.signature(cls.__init__).parameters
+    if any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        return
+    fixed = {"self", "size", "image", "motion", "speed", "pattern"}  # set by procedural
+    taken = [k for k, p in params.items() if k not in fixed
+             and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    unknown = sorted(set(options) - (set(params) - fixed))
+    if unknown:
+        raise bad_value("options", unknown, f"keywords scene {name!r} takes: "
+                        f"{', '.join(taken) or 'none'}")

@@ -79,6 +79,11 @@ def test_budget_callable_method_and_errors():
 
     res = _budget(method=mean_rate)
     assert res.data["method"] == "mean_rate" and len(calls) == 3 * 7  # 6 runs + clean twin
+
+    def no_rate(spikes, cfa, center):  # spikejdd's protocol: rate is optional
+        return spikes[center - 10: center + 11].mean(axis=0) / 0.6
+
+    assert _budget(method=no_rate).data["method"] == "no_rate"
     with pytest.raises(SpikeSimValueError, match="noise"):
         noise_budget("flat", ss.Sensor(cfa=None), n_readouts=100, size=(8, 8))
     assert noise_sources(ss.noise.PaperNoise(sigma_g=3.0)) == {"gaussian (sigma_g)":

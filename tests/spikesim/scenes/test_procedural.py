@@ -178,6 +178,10 @@ def test_exposure_scales_radiance():
         (dict(name="fan", blades=0), "blades"),
         (dict(name="astronaut", max_px=0), "max_px"),
         (dict(name="astronaut", exposure=-2), "exposure"),
+        # a keyword the scene does not take: named, with those it does
+        (dict(name="flat", bogus=2), r"options=\['bogus'\].*'flat' takes: level, max_px"),
+        (dict(name="astronaut", levle=1), r"options=\['levle'\].*direction_deg"),
+        (dict(name="fan", image="x"), r"options=\['image'\].*blades"),
     ],
 )
 def test_bad_input_names_the_parameter(kwargs, match):
