@@ -70,6 +70,8 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
     if lv.size == 0:
         raise bad_value("levels", levels, "some radiance with 0 < r·I < 1 (r = full_scale_rate)")
     kappa2 = theory.cycle_cv2(sensor.noise)
+    sigma_q2 = theory.charge_noise_var(sensor.noise)
+    loss = theory.reset_loss(sensor.noise)
     rows = []
     keys = ("mean", "mean_theory", "within_var", "within_var_theory", "pooled_var",
             "pooled_var_theory", "clean_fraction")
@@ -90,8 +92,8 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
         mom = pixel_intervals(as_capture(run.spikes), keep={"all": np.ones(q.shape, bool)})
         s = interval_summary(mom)
         ok = q > 0
-        wvar_i = theory.isi_var_theory(q[ok], kappa2)
-        mean_i = theory.isi_mean_theory(q[ok])
+        wvar_i = theory.isi_var_theory(q[ok], kappa2, sigma_q2, loss)
+        mean_i = theory.isi_mean_theory(q[ok], loss)
         within_th = float(np.average(wvar_i, weights=mom.n[ok] + 1e-9))
         pooled_th = float(np.mean(wvar_i) + np.var(mean_i))
         pmf = theory.isi_clean_pmf(float(np.median(q)))
@@ -103,15 +105,19 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
             out[k].append(v)
         rows.append((level, s["intervals"], *vals))
         hists.append((level, iv, pmf))
-    headers = ["radiance I", "intervals", "mean ISI", "theory 1/q", "within-pixel var",
+    headers = ["radiance I", "intervals", "mean ISI", "theory 1/q + f", "within-pixel var",
                "theory", "pooled var", "theory", "in {⌊1/q⌋,⌈1/q⌉}"]
     data = {"sensor": sensor.to_dict(), "levels": lv, "n_readouts": n_readouts,
-            "size": list(size), "seed": seed, "kappa2": kappa2, **out}
+            "size": list(size), "seed": seed, "kappa2": kappa2, "sigma_q2": sigma_q2,
+            "reset_charge_loss": loss, **out}
     notes = [
         f"Flat fields, {size[0]}×{size[1]} pixels, {n_readouts} readouts; intervals in "
-        f"readouts. Cycle CV² κ² = σ_t² + 1/E = {kappa2:.3g}.",
-        "Theory: mean 1/q; within-pixel variance κ²/q² + E[frac(τ)(1−frac(τ))] (p(1−p) noise "
-        "free); pooled variance adds the fixed-pattern spread var_i(1/q_i). Last column: "
+        f"readouts. Cycle CV² κ² = σ_t² + 1/E = {kappa2:.3g}; accumulating charge noise "
+        f"σ_q² = (σ_e/E)² = {sigma_q2:.3g} thresholds² per readout; charge loss at reset "
+        f"f = {loss:g}.",
+        "Theory: mean 1/q + f; within-pixel variance κ²/q² + σ_q²/q³ + "
+        "E[frac(τ)(1−frac(τ))] (p(1−p) noise free); pooled variance adds the fixed-pattern "
+        "spread var_i(1/q_i). Last column: "
         "fraction of intervals equal to floor or ceil of 1/q at the median pixel (1 when "
         "noise free and without fixed pattern).",
     ]

@@ -48,16 +48,22 @@ _GH_X, _GH_W = np.polynomial.hermite_e.hermegauss(48)
 _GH_W = _GH_W / _GH_W.sum()
 
 
-def tfi_moments_theory(q, kappa2: float, r: float) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and second moment of the TFI estimate of pixels with charge ``q`` (0 < q < 1)."""
+def tfi_moments_theory(q, kappa2: float, r: float, sigma_q2: float = 0.0,
+                       loss: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and second moment of the TFI estimate of pixels with charge ``q`` (0 < q < 1):
+    the cycle ``τ`` is Gaussian of mean ``1/q + f`` and variance ``κ²/q² + σ_q²/q³``
+    (:mod:`spikesim.analysis.theory`, charge loss ``f`` and accumulating charge noise
+    ``σ_q²``), clocked to ``⌊τ⌋`` or ``⌈τ⌉`` readouts."""
     q = np.asarray(q, dtype=np.float64)
-    sd = np.sqrt(kappa2) / q
-    tau = 1.0 / q[..., None] + (sd[..., None] * _GH_X if kappa2 > 0 else 0.0 * _GH_X)
+    sd = np.sqrt(kappa2 / q**2 + sigma_q2 / q**3)
+    noisy = kappa2 > 0 or sigma_q2 > 0
+    tau = 1.0 / q[..., None] + loss + (sd[..., None] * _GH_X if noisy else 0.0 * _GH_X)
     tau = np.maximum(tau, 1.0)
     n = np.floor(tau)
     f = tau - n
     inv_l = np.sum(_GH_W * ((1 - f) / n + f / (n + 1)), axis=-1)
-    return q / r, q / r**2 * inv_l
+    mean_l = 1.0 / q + loss  # a centre falls in an interval with probability ∝ its length
+    return 1.0 / (mean_l * r), inv_l / (mean_l * r**2)
 
 
 def _window_estimates(spikes, w, r):
@@ -104,7 +110,7 @@ def _tfp_snr_theory(model, q, v1, w, r, noisy: bool) -> float:
     return np.inf if mean_th > 0 else np.nan
 
 
-def _tfi_snr(spikes, q, cfg: SNRConfig, kappa2: float, r: float) -> tuple[float, float]:
+def _tfi_snr(spikes, q, cfg: SNRConfig, noise, r: float) -> tuple[float, float]:
     """Measured and theoretical SNR of TFI at centres ``tfi_stride`` apart (NaN when the
     stream is too short for three of the longest intervals on either side)."""
     qmin = float(q.min())
@@ -116,7 +122,8 @@ def _tfi_snr(spikes, q, cfg: SNRConfig, kappa2: float, r: float) -> tuple[float,
         m, s = float(vals.mean()), float(vals.std())
         measured = m / s if s > m * 1e-9 else np.inf
         if ((q > 0) & (q < 0.95)).all():
-            e1, e2 = tfi_moments_theory(q, kappa2, r)
+            e1, e2 = tfi_moments_theory(q, theory.cycle_cv2(noise), r,
+                                        theory.charge_noise_var(noise), theory.reset_loss(noise))
             var = e2.mean() - e1.mean() ** 2
             theory_snr = e1.mean() / np.sqrt(var) if var > 1e-18 else np.inf
     return measured, theory_snr
@@ -140,7 +147,7 @@ def measure_snr(sensor, levels: np.ndarray, cfg: SNRConfig, progress: bool = Fal
     for level in it:
         run = simulate_flat(sensor, level, cfg.n_readouts, cfg.seed, cfg.size)
         q = run.q
-        model = theory.rate_theory(q, sensor.reset)
+        model = theory.rate_theory(q, sensor.reset, theory.reset_loss(sensor.noise))
         v1 = theory.charge_variance_per_readout(q, sensor.noise, r, level)
         res["mean_rate"].append(float(run.spikes.mean()))
         for w in wins:
@@ -152,7 +159,7 @@ def measure_snr(sensor, levels: np.ndarray, cfg: SNRConfig, progress: bool = Fal
             res[f"tfp_snr_theory_w{w}"].append(
                 _tfp_snr_theory(model, q, v1, w, r, sensor.noise is not None))
             res.setdefault(f"mean_tfp_w{w}", []).append(m)
-        measured, predicted = _tfi_snr(run.spikes, q, cfg, kappa2, r)
+        measured, predicted = _tfi_snr(run.spikes, q, cfg, sensor.noise, r)
         res["tfi_snr"].append(measured)
         res["tfi_snr_theory"].append(predicted)
         if level == 0:

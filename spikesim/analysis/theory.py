@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from spikesim.errors import bad_value
 from spikesim.noise import PaperNoise, PhysicalNoise
 
 __all__ = [
@@ -69,6 +70,7 @@ __all__ = [
     "isi_var_theory",
     "isi_cv2_theory",
     "charge_noise_var",
+    "reset_loss",
     "isi_clean_pmf",
 ]
 
@@ -77,12 +79,46 @@ _FOURIER_TERMS = 400
 _M = np.arange(1, _FOURIER_TERMS + 1, dtype=np.float64)[None, :]
 
 
+RESETS = ("modulo", "subtract", "zero")
+
+
+def _charge(q, interval: bool = False) -> np.ndarray:
+    """``q`` as float64, checked: finite and ≥ 0; for interval statistics
+    ``0 < q ≤ 1`` (a pixel at q ≥ 1 fires at every readout: no interval to describe)."""
+    arr = np.asarray(q, dtype=np.float64)
+    if not np.all(np.isfinite(arr)):
+        raise bad_value("q", q, "finite charges per readout (thresholds)")
+    if interval and (np.any(arr <= 0) or np.any(arr > 1)):
+        raise bad_value("q", q, "charges per readout in (0, 1] thresholds (at q >= 1 every "
+                        "readout fires; at 0 none does)")
+    if np.any(arr < 0):
+        raise bad_value("q", q, "charges per readout >= 0 thresholds")
+    return arr
+
+
+def _fraction(value, name: str) -> float:
+    """A charge loss in [0, 1)."""
+    v = float(value)
+    if not 0.0 <= v < 1.0:
+        raise bad_value(name, value, "a fraction in [0, 1)")
+    return v
+
+
+def _variance(value, name: str) -> float:
+    v = float(value)
+    if not (np.isfinite(v) and v >= 0.0):
+        raise bad_value(name, value, "a finite variance >= 0")
+    return v
+
+
 def rate_theory(q, reset: str = "modulo", loss: float = 0.0) -> np.ndarray:
     """Mean spikes per readout at charge ``q`` thresholds/readout for a reset
     mode, with charge loss ``loss`` at reset (module notes): modulo and
     subtract ``min(q/(1 + f·q), 1)``, zero ``1/⌈1/q + f⌉``."""
-    q = np.asarray(q, dtype=np.float64)
-    f = float(loss)
+    if reset not in RESETS:
+        raise bad_value("reset", reset, f"one of {RESETS}")
+    q = _charge(q)
+    f = _fraction(loss, "loss")
     if reset == "zero":
         with np.errstate(divide="ignore"):
             cyc = np.ceil(np.where(q > 0, 1.0 / np.maximum(q, 1e-300), np.inf) + f - 1e-12)
@@ -132,6 +168,11 @@ def charge_noise_var(noise) -> float:
     return float((noise.charge_noise_electrons / noise.electrons_per_threshold) ** 2)
 
 
+def reset_loss(noise) -> float:
+    """The charge loss at reset ``f`` (``reset_charge_loss``; 0 for other models)."""
+    return float(noise.reset_charge_loss) if isinstance(noise, PhysicalNoise) else 0.0
+
+
 def charge_variance_per_readout(q, noise, full_scale_rate: float, intensity=None):
     """Per-readout variance of the charge (thresholds²) at mean charge ``q``.
 
@@ -150,7 +191,9 @@ def charge_variance_per_readout(q, noise, full_scale_rate: float, intensity=None
 
 def count_variance(q, window: int, v1=0.0) -> np.ndarray:
     """Variance of the spike count over ``window`` readouts (non-saturating ``q < 1``)."""
-    q = np.asarray(q, dtype=np.float64)
+    q = _charge(q)
+    if isinstance(window, bool) or not isinstance(window, int | np.integer) or window < 1:
+        raise bad_value("window", window, "an integer >= 1 readouts")
     vx = window * np.asarray(v1, dtype=np.float64)
     return vx + frac_variance(window * q, np.sqrt(vx))
 
@@ -158,7 +201,7 @@ def count_variance(q, window: int, v1=0.0) -> np.ndarray:
 def isi_mean_theory(q, loss: float = 0.0) -> np.ndarray:
     """Mean inter-spike interval (readouts) at charge ``q < 1``: ``1/q + f``
     with charge loss ``f`` at reset (0: ``1/q``)."""
-    return 1.0 / np.asarray(q, dtype=np.float64) + float(loss)
+    return 1.0 / _charge(q, interval=True) + _fraction(loss, "loss")
 
 
 def isi_var_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0,
@@ -166,9 +209,10 @@ def isi_var_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0,
     """Variance of the clocked inter-spike interval (readouts²), see module
     notes: ``Var(τ) + E[frac(τ)(1 − frac(τ))]`` with
     ``Var(τ) = κ²/q² + σ_q²/q³`` and ``E[τ] = 1/q + f``."""
-    q = np.asarray(q, dtype=np.float64)
+    q = _charge(q, interval=True)
+    kappa2, sigma_q2 = _variance(kappa2, "kappa2"), _variance(sigma_q2, "sigma_q2")
     sd = np.sqrt(kappa2 / q**2 + sigma_q2 / q**3)
-    return sd**2 + frac_variance(1.0 / q + float(loss), sd)
+    return sd**2 + frac_variance(1.0 / q + _fraction(loss, "loss"), sd)
 
 
 def isi_cv2_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0,
@@ -177,14 +221,14 @@ def isi_cv2_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0,
     with ``m₀ = 1/q`` readouts and charge loss ``f``: constant for per-cycle
     noise without loss, growing linearly with the interval for accumulating
     charge noise; the loss only lowers it for short intervals."""
-    q = np.asarray(q, dtype=np.float64)
-    m0 = 1.0 / q
-    return (kappa2 + sigma_q2 * m0) * (m0 / (m0 + float(loss))) ** 2
+    m0 = 1.0 / _charge(q, interval=True)
+    kappa2, sigma_q2 = _variance(kappa2, "kappa2"), _variance(sigma_q2, "sigma_q2")
+    return (kappa2 + sigma_q2 * m0) * (m0 / (m0 + _fraction(loss, "loss"))) ** 2
 
 
 def isi_clean_pmf(q: float) -> dict[int, float]:
     """Noise-free interval distribution: ``{floor(1/q): 1 − p, ceil(1/q): p}``."""
-    inv = 1.0 / float(q)
+    inv = 1.0 / float(_charge(q, interval=True))
     n = int(np.floor(inv))
     p = inv - n
     if p < 1e-12:

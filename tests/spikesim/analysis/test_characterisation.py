@@ -98,6 +98,30 @@ def test_isi_jitter_broadens_within_pixel_as_predicted():
         assert v == pytest.approx(vt, rel=4 * np.sqrt(2 / n) + 0.02)
 
 
+def test_isi_and_tfi_theory_include_charge_noise_and_charge_loss():
+    """Accumulating charge noise (σ_q²/q³ grows with the interval) and the charge loss
+    at reset (mean 1/q + f) enter the ISI and TFI theory columns, which then follow
+    the simulation as closely as for per-cycle noise; without them the theory of
+    the dimmest level would be 15× too small (σ_e = 10 e⁻, E = 382)."""
+    noise = only(shot_noise=True, electrons_per_threshold=382.0, charge_noise_electrons=10.0,
+                 reset_charge_loss=0.05)
+    res = isi_statistics(MONO.replace(noise=noise), (0.02, 0.1, 0.5), n_readouts=5000,
+                         size=(8, 8))
+    d = res.data
+    assert d["sigma_q2"] == pytest.approx((10.0 / 382.0) ** 2)
+    assert d["reset_charge_loss"] == 0.05
+    for m, mt in zip(d["mean"], d["mean_theory"], strict=True):
+        assert m == pytest.approx(mt, rel=0.01)
+    counts = [r[1] for r in res.tables[0][2]]
+    for v, vt, n in zip(d["within_var"], d["within_var_theory"], counts, strict=True):
+        assert v == pytest.approx(vt, rel=4 * np.sqrt(2 / n) + 0.03)
+    assert d["within_var_theory"][0] > 150  # σ_q²/q³ at q = 0.012: the dominant term
+    snr = snr_curve(MONO.replace(noise=noise), (0.05, 0.3), (41,), n_readouts=3220,
+                    size=(16, 16), tfi_stride=40).data
+    for m, t in zip(snr["tfi_snr"], snr["tfi_snr_theory"], strict=True):
+        assert m == pytest.approx(t, rel=0.08)
+
+
 def test_isi_fixed_pattern_broadens_pooled_not_within():
     res = isi_statistics(MONO.replace(noise=only(prnu=0.08)), (0.05,), n_readouts=4000,
                          size=(8, 8))
@@ -145,3 +169,23 @@ def test_bad_sweep_inputs():
         transfer_curve(MONO, (0.1,), n_readouts=100, window=100)
     with pytest.raises(SpikeSimValueError, match="windows"):
         snr_curve(MONO, (0.1,), windows=(0,))
+
+
+@pytest.mark.parametrize("call,match", [
+    (lambda t: t.rate_theory(0.1, reset="foo"), "reset='foo'"),
+    (lambda t: t.rate_theory(-0.1), r"q=-0.1.*>= 0"),
+    (lambda t: t.rate_theory(np.nan), "finite"),
+    (lambda t: t.rate_theory(0.1, loss=1.0), "loss=1.0.*fraction"),
+    (lambda t: t.isi_mean_theory(-1.0), r"q=-1.0.*\(0, 1\]"),
+    (lambda t: t.isi_mean_theory(0.0), r"q=0.0.*\(0, 1\]"),
+    (lambda t: t.isi_cv2_theory(1.5, 0.001), r"q=1.5.*\(0, 1\]"),
+    (lambda t: t.isi_var_theory(0.1, kappa2=-1.0), "kappa2"),
+    (lambda t: t.isi_var_theory(0.1, sigma_q2=np.inf), "sigma_q2"),
+    (lambda t: t.isi_clean_pmf(2.0), r"q=2.0"),
+    (lambda t: t.count_variance(0.1, 0), "window"),
+])
+def test_theory_functions_refuse_what_they_do_not_describe(call, match):
+    from spikesim.analysis import theory
+
+    with pytest.raises(SpikeSimValueError, match=match):
+        call(theory)
