@@ -91,9 +91,12 @@ def transfer_curve(sensor="ideal", levels=DEFAULT_LEVELS, n_readouts: int = 2000
         cvar = np.where(run.q < 1, theory.count_variance(qc, window, v1), 0.0)
         tot = np.where(run.q < 1, theory.count_variance(qc, n_readouts, v1), 0.0)
         fpn_theory = float(np.sqrt(model.var() + tot.mean() / n_readouts**2))
+        # near saturation the per-readout clipping couples the noise sources: no theory
+        # where a pixel's charge is within 0.05 + 3 s.d. of its per-readout noise of 1
+        near = np.abs(run.q - 1.0) < 0.05 + 3.0 * np.sqrt(np.maximum(v1, 0.0))
+        valid = sensor.reset != "zero" and not (sensor.noise is not None and np.any(near))
         vals = (float(rate.mean()), min(r * level, 1.0), float(model.mean()), fpn,
-                fpn_theory, tsd,
-                float(np.sqrt(cvar.mean())) / window if sensor.reset != "zero" else np.nan)
+                fpn_theory, tsd, float(np.sqrt(cvar.mean())) / window if valid else np.nan)
         for k, v in zip(out, vals, strict=True):
             out[k].append(v)
         rows.append((level, *vals))
@@ -108,8 +111,8 @@ def transfer_curve(sensor="ideal", levels=DEFAULT_LEVELS, n_readouts: int = 2000
         "Rates in spikes per readout. *model* uses the sensor's own fixed pattern "
         "(q_i = r·(g_i·I + d_i)/t_i); FPN = spread of per-pixel mean rates; temporal = "
         f"spread of one pixel's rate over {window}-readout windows. The temporal theory "
-        "assumes q < 1 and is approximate within a few % of saturation (rate → 1); for "
-        "zero reset it is not given (n/a).",
+        "assumes q < 1: with noise it is not given (–) where some pixel's charge per "
+        "readout is within 0.05 + 3 noise s.d. of one threshold, nor for zero reset.",
     ]
 
     def plot(fig):
