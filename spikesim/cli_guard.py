@@ -176,13 +176,35 @@ def _warning_line(label: str):
     """A ``warnings.showwarning`` that prints ``LABEL: warning: MESSAGE`` (no file
     name or source line: they point into the package, not at the user's input)."""
     def show(message, category, filename, lineno, file=None, line=None):
-        _say(label, f"warning: {message}")
+        _say(label, f"warning: {message}", end_bars=False)
     return show
 
 
-def _say(label: str, text: str) -> None:
+def _say(label: str, text: str, end_bars: bool = True) -> None:
+    """Print ``LABEL: TEXT`` to stderr on a line of its own.  Progress bars still on
+    the terminal are ended first (``end_bars``: their line is cleared, so an error
+    is not glued to a bar and no bar is drawn again after it) or, for a warning
+    during work, the line is printed above them."""
+    line = f"{label}: {text}"
     with contextlib.suppress(OSError, ValueError):
-        print(f"{label}: {text}", file=sys.stderr)
+        bars = _open_bars()
+        if bars and not end_bars:
+            bars[0].write(line, file=sys.stderr)
+            return
+        for bar in bars:
+            with contextlib.suppress(Exception):
+                bar.leave = False
+                bar.close()
+        print(line, file=sys.stderr)
+
+
+def _open_bars() -> list:
+    """tqdm's progress bars still open in this process (none when tqdm is not loaded)."""
+    tqdm_module = sys.modules.get("tqdm")
+    if tqdm_module is None:
+        return []
+    return [b for b in list(getattr(tqdm_module.tqdm, "_instances", ()))
+            if not getattr(b, "disable", True)]
 
 
 #: Upper bound of any readout count given on a command line (2**40: ~1.7 years at 20 kHz).

@@ -11,6 +11,8 @@ __all__ = ["add_source_options", "source_from_args", "parse_crop"]
 
 def add_source_options(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("input")
+    g.add_argument("--split", default=None,
+                   help="split folder of a dataset root (as `spikesim dataset` writes it)")
     g.add_argument("--sequence", default=None,
                    help="sequence name (or position) in a dataset folder; default: the first")
     g.add_argument("--height", type=int, default=None,
@@ -40,7 +42,11 @@ def source_from_args(args: argparse.Namespace, path):
     import warnings
 
     from spikesim.io.dat import RAW_HEAD_COLUMNS
+    from spikesim.io.index import resolve_dataset
+    from spikesim.io.source import is_dat
 
+    if not is_dat(path):
+        path = resolve_dataset(path, getattr(args, "split", None))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         src = open_source(

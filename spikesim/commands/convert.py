@@ -62,12 +62,15 @@ def convert(src, dst, start: int = 0, length: int | None = None, crop=None,
     from spikesim._validate import check_crop, check_window
     from spikesim.cfa import cfa_after_crop
     from spikesim.io import DEFAULT_COMPRESSION
+    from spikesim.io._compression import compression_kwargs
     from spikesim.io.dat import DatWriter
     from spikesim.io.h5 import H5Writer
     from spikesim.io.source import is_dat
 
     start, length = check_window(start, length, src.n_readouts)
     top, left, h, w = check_crop(crop, src.height, src.width)
+    if not is_dat(dst):
+        compression_kwargs(compression or DEFAULT_COMPRESSION)  # refused before any work
     box = (top, left, h, w)
     bar = tqdm(total=length, disable=not progress, unit="readout", desc=Path(dst).name)
     if is_dat(dst):
@@ -103,8 +106,10 @@ def convert(src, dst, start: int = 0, length: int | None = None, crop=None,
 def run(args) -> int:
     if args.sjdd:
         from spikesim.io.export import export_sjdd
+        from spikesim.io.index import resolve_dataset
 
-        summary = export_sjdd(args.src, args.dst, subset=args.subset, noise=args.noise,
+        summary = export_sjdd(resolve_dataset(args.src, args.split), args.dst,
+                              subset=args.subset, noise=args.noise,
                               gt_encoding=args.gt_encoding, progress=not args.quiet,
                               option_names={"noise": "--noise", "subset": "--subset",
                                             "gt_encoding": "--gt-encoding"})
@@ -118,6 +123,14 @@ def run(args) -> int:
 
     if not args.dst.lower().endswith((".dat", ".h5", ".hdf5")):
         raise bad_value("DST", args.dst, "a path ending in .dat, .h5 or .hdf5")
+    from spikesim.errors import SpikeSimValueError
+    from spikesim.io._compression import compression_kwargs
+
+    try:
+        compression_kwargs(args.compression)
+    except SpikeSimValueError as exc:
+        raise bad_value("--compression", args.compression,
+                        str(exc).split("expected ", 1)[-1]) from None
     src = source_from_args(args, args.src)
     out = convert(src, args.dst, args.start, args.length, args.crop, out_flip=args.out_flip,
                   compression=args.compression, progress=not args.quiet)

@@ -19,8 +19,6 @@ def register(subparsers) -> None:
     )
     p.add_argument("path", help="a .h5 file, a dataset folder or root, or a .dat capture")
     p.add_argument("--all", action="store_true", help="describe every sequence of a folder")
-    p.add_argument("--split", default=None,
-                   help="split folder of a dataset root (as `spikesim dataset` writes it)")
     p.add_argument("--stats-readouts", type=int, default=4096,
                    help="readouts used for firing-rate statistics (default 4096)")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")

@@ -42,3 +42,27 @@ def test_a_stop_inside_a_progress_bar_gives_its_one_line_and_nothing_more(stop, 
     # other finalizers' reports still reach the hook that was there
     sys.unraisablehook(type("U", (), {"object": print, "exc_value": ValueError()})())
     assert len(reported) == 1
+
+
+def test_an_error_during_a_progress_bar_is_a_line_of_its_own(capsys):
+    """An error raised while a bar is drawn ends the bar (its line cleared) and is
+    printed on a line of its own, with no bar drawn again after it; a warning
+    during the work is printed above the bar, which goes on."""
+    import warnings
+
+    from spikesim.errors import SpikeSimValueError
+
+    def call():
+        bar = tqdm(total=10, desc="work", file=sys.stderr)
+        bar.update(3)
+        warnings.warn("careful", stacklevel=2)
+        bar.update(3)
+        raise SpikeSimValueError("x=1 is invalid")
+
+    assert run_guarded("spikesim test", call) == 1
+    err = capsys.readouterr().err
+    tail = err.rsplit("\r", 1)[-1]
+    assert tail == "spikesim test: error: x=1 is invalid\n", repr(err)
+    assert "spikesim test: warning: careful\n" in err
+    gc.collect()
+    assert capsys.readouterr().err == ""

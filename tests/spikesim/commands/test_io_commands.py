@@ -162,3 +162,29 @@ def test_info_of_a_folder_says_which_sequence_of_how_many(tmp_path, capsys):
         assert out.startswith("b  ") and "(sequence 2 of 3 in" in out
     assert main(["info", str(tmp_path / "a.h5")]) == 0
     assert "(sequence " not in capsys.readouterr().out
+
+
+def test_file_commands_take_split_of_a_dataset_root(tmp_path, capsys):
+    """preview, convert (also --sjdd) and info read a split of a dataset root with
+    --split, as the root's error message tells them to."""
+    sensor = ss.Sensor(height=8, width=16, cfa="RGGB")
+    for split, seed in (("train", 0), ("val", 1)):
+        (tmp_path / "root" / split).mkdir(parents=True)
+        scene = ss.scenes.procedural("astronaut", size=(8, 16))
+        write_h5(tmp_path / "root" / split / f"s{seed}.h5",
+                 ss.simulate(scene, sensor, 45, seed=seed, gt_readouts=[22]))
+    root = str(tmp_path / "root")
+    assert main(["preview", root, "--out", str(tmp_path / "p.png")]) == 1
+    assert "pick one with --split NAME" in capsys.readouterr().err
+    assert main(["preview", root, "--split", "val", "--out", str(tmp_path / "p.png")]) == 0
+    assert main(["convert", root, str(tmp_path / "c.h5"), "--split", "val", "--quiet"]) == 0
+    assert open_h5(tmp_path / "c.h5").meta["seed"] == 1
+    assert main(["convert", root, str(tmp_path / "sj"), "--sjdd", "--split", "train",
+                 "--quiet"]) == 0
+    assert main(["info", root, "--split", "train", "--json"]) == 0
+    assert "s0" in capsys.readouterr().out
+    assert main(["convert", str(tmp_path / "c.h5"), str(tmp_path / "d.h5"),
+                 "--compression", "brotli"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("spikesim convert: error: --compression='brotli'") and "\r" not in err
+    assert not (tmp_path / "d.h5").exists()
