@@ -92,6 +92,41 @@ def _remove_stale_temps(out: Path, splits) -> int:
     return sum(remove_stale_temps(out / split) for split in splits if (out / split).is_dir())
 
 
+def _check_one_executor(workers: int, scheduler, dask_local,
+                        names=("workers", "scheduler", "dask_local")) -> None:
+    """Refuse two executors at once (``names``: how the caller calls the options)."""
+    w, sch, dl = names
+    if scheduler is not None and dask_local is not None:
+        raise bad_value(sch, scheduler, f"no {dl} with it: give an existing scheduler or a "
+                        "local cluster, not both")
+    if workers != 1 and (scheduler is not None or dask_local is not None):
+        other = sch if scheduler is not None else dl
+        raise bad_value(w, workers, f"1 with {other} (the Dask workers run the tasks): "
+                        "give one of the two")
+
+
+def _probe_scheduler(scheduler: str) -> None:
+    """Connect to the Dask scheduler once and close; a clear error when it cannot be reached."""
+    client = _connect(scheduler)
+    with contextlib.suppress(Exception):
+        client.close()
+
+
+def _connect(scheduler: str):
+    try:
+        from dask.distributed import Client
+    except ImportError as exc:  # pragma: no cover - dask is a declared extra
+        raise bad_value("scheduler", scheduler,
+                        "dask[distributed] installed (pip install 'spikesim[dist]')") from exc
+    try:
+        return Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        raise SpikeSimFileError(
+            f"cannot reach the Dask scheduler {scheduler!r} ({type(exc).__name__}: {exc}): "
+            "check the address (tcp://HOST:PORT) and that the scheduler is running"
+        ) from None
+
+
 def _check_workers(workers) -> int:
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise bad_value("workers", workers, "an integer >= 1")
@@ -121,6 +156,9 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     workers = _check_workers(workers)
     if dask_local is not None:
         _check_workers(dask_local)
+    _check_one_executor(workers, scheduler, dask_local)
+    if scheduler is not None:
+        _probe_scheduler(scheduler)  # an unreachable scheduler is refused before any write
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SpikeSimFileError(f"output folder {str(out)!r} is an existing file: give a folder "
@@ -182,7 +220,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
             summary.executor = f"{workers} local processes"
             with worker_thread_env(max(1, (os.cpu_count() or 1) // workers)):
                 _run_pool(pending, out, workers, on_result)
-    except BaseException:
+    except BaseException as exc:
         # stopped (SIGTERM, Ctrl-C) or a scheduler error: record what was done,
         # the files workers finished but had not reported yet included, and index it
         summary.seconds = time.perf_counter() - t0
@@ -194,7 +232,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
                     build_index(out / split)
         with contextlib.suppress(Exception):
             _write_summary(out / "build_summary.json", summary)
-        if progress:
+        if progress and not isinstance(exc, Exception):  # a stop, not an error
             bar.write(f"stopped: {summary.done} of {len(pending)} sequences to make were "
                       f"finished and kept in {out}; running the same build again makes the "
                       f"other {len(pending) - summary.done - summary.failed}", file=sys.stderr)
@@ -349,13 +387,7 @@ def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) 
                         "dask[distributed] installed (pip install 'spikesim[dist]')") from exc
     cluster = None
     if scheduler is not None:
-        try:
-            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError, TypeError) as exc:
-            raise SpikeSimFileError(
-                f"cannot reach the Dask scheduler {scheduler!r} ({type(exc).__name__}: {exc}): "
-                "check the address (tcp://HOST:PORT) and that the scheduler is running"
-            ) from None
+        client = _connect(scheduler)
         label = f"dask scheduler {scheduler}"
     else:
         cluster = LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True,

@@ -69,6 +69,20 @@ def test_unreachable_scheduler(tmp_path, h5):
     pytest.importorskip("distributed")
     _fails("spikesim", ["dataset", "builtin:demo", "--out", "ds", "--limit", "1",
                         "--scheduler", "tcp://127.0.0.1:1"], "Dask scheduler")
+    assert not (tmp_path / "ds").exists()  # refused before anything is written
+
+
+@pytest.mark.parametrize("extra,needle", [
+    (["--workers", "2", "--dask-local", "2"], "--workers=2 is invalid: expected 1 with "
+                                              "--dask-local"),
+    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "1 with --scheduler"),
+    (["--dask-local", "2", "--scheduler", "tcp://127.0.0.1:1"], "not both"),
+    (["--workers", "2", "--dask-local", "2", "--dry-run"], "--workers=2"),
+])
+def test_dataset_refuses_two_executors(tmp_path, h5, extra, needle):
+    _fails("spikesim", ["dataset", "builtin:demo", "--out", "ds", "--limit", "1", *extra],
+           needle)
+    assert not (tmp_path / "ds").exists()
 
 
 @pytest.mark.parametrize("n,needle", [("100000000000000000000", "--readouts"),
