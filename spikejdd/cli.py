@@ -153,7 +153,8 @@ def _reconstruct_parser(sub) -> None:
     rc.add_argument("--centers", help="readouts to reconstruct, e.g. 19,59 or 19:200:20 "
                                       "(default: GT readouts for .h5, the middle for .dat)")
     rc.add_argument("--context", type=int, default=41, help="readouts given to the method")
-    rc.add_argument("--cfa", help="Bayer pattern (default: from the file; RGGB for .dat)")
+    rc.add_argument("--cfa", help=".dat: Bayer pattern of a colour sensor (RGGB, BGGR, GRBG, "
+                                  "GBRG; default mono, as a .dat records none)")
     rc.add_argument("--height", type=int, help=".dat frame height (default 250)")
     rc.add_argument("--width", type=int, help=".dat stored width (default 400)")
     rc.add_argument("--head-columns", type=int, default=0, help=".dat head columns to drop")
@@ -363,7 +364,7 @@ def _reconstruct_into(args, written: list) -> None:
         from spikesim.io import open_dat
 
         cap = open_dat(src, args.height or 250, args.width or 400, flip=not args.no_flip,
-                       head_columns=args.head_columns, cfa=args.cfa or "RGGB")
+                       head_columns=args.head_columns, cfa=args.cfa)
         n, cfa, rate = cap.n_readouts, cap.cfa, args.rate or 0.6
         centers = _centers(args.centers, [n // 2])
 
@@ -406,7 +407,13 @@ def _reconstruct_into(args, written: list) -> None:
         tiles = []
         for m in methods:
             bar.set_postfix_str(m.name)
-            rgb = call_method(m, spikes, cfa, c - start, rate=rate, **options)
+            try:
+                rgb = call_method(m, spikes, cfa, c - start, rate=rate, **options)
+            except SpikeSimValueError as exc:
+                if cfa is None and args.cfa is None and src.suffix.lower() == ".dat":
+                    exc.args = (f"{exc} (a .dat records no colour filter: give --cfa RGGB, "
+                                "or the sensor's pattern, for a colour capture)",)
+                raise
             used[m.name] = m.window_for(length)
             tiles.append(rgb)
             img = linear_to_srgb8(rgb)

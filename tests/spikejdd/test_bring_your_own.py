@@ -259,6 +259,17 @@ def test_reconstruct_dat_capture_writes_side_by_side_panels(tmp_path, capsys):
     assert single.shape == (250, 400, 3)
     assert panel.shape[1] == 2 * 400 + 2 and panel.shape[0] > 250
     np.testing.assert_array_equal(panel[-250:, :400], single)
+    # a .dat records no colour filter: mono by default, as spikesim reads it; a colour
+    # method then says how to give the pattern
+    mono = tmp_path / "mono"
+    assert main(["reconstruct", str(dat), "--methods", "tfp+bilinear", "--centers", "150",
+                 "--out", str(mono), "--quiet"]) == 0
+    grey = cv2.imread(str(mono / "203_part2_key_id151_tfp_bilinear_000150.png"))
+    assert (grey[..., 0] == grey[..., 1]).all() and (grey[..., 1] == grey[..., 2]).all()
+    capsys.readouterr()
+    assert main(["reconstruct", str(dat), "--methods", "sjdd", "--centers", "150",
+                 "--out", str(tmp_path / "no"), "--quiet"]) == 1
+    assert "give --cfa RGGB" in capsys.readouterr().err
 
 
 def test_demo_checks_the_device_before_any_work(tmp_path, capsys):
