@@ -55,9 +55,14 @@ class SplineTexture:
         self._coef = [
             ndimage.spline_filter(img[..., c], order=3, mode=self._mode) for c in range(3)
         ]
+        # the spline overshoots at sharp edges (up to 13 % above full scale on the
+        # astronaut's white suit): samples are clipped to the texture's own range
+        self._range = [(max(float(img[..., c].min()), 0.0), float(img[..., c].max()))
+                       for c in range(3)]
 
     def sample(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Radiance at (rows, cols) (same shape arrays) → shape + (3,) float32."""
+        """Radiance at (rows, cols) (same shape arrays) → shape + (3,) float32, within
+        the texture's range per channel (no spline overshoot)."""
         from scipy import ndimage
 
         coords = np.stack([rows, cols])
@@ -66,7 +71,7 @@ class SplineTexture:
             out[..., c] = ndimage.map_coordinates(
                 self._coef[c], coords, order=3, mode=self._mode, prefilter=False
             )
-        np.clip(out, 0.0, None, out=out)
+            np.clip(out[..., c], *self._range[c], out=out[..., c])
         return out
 
 
