@@ -35,7 +35,7 @@ n+19`` (39, centred on ``n``) and the GT of readout ``n``.
 Noise folders: a named folder (``noise="phy"``, ``--noise phy``) takes every
 sequence whatever its noise model (physical-mode data included).  With
 ``noise="auto"`` one kind of noise gives one folder (several Gaussian levels
-give ``r``); a **mixed** dataset (e.g. GN and GPN sequences) exports each
+give ``r``, physical-mode noise, which has no SJDD-Net level, ``phy``); a **mixed** dataset (e.g. GN and GPN sequences) exports each
 label to its own folder, and since the loader pairs ``spk/<noise>/<subset>``
 with ``gt/<subset>`` by sorted name, each label also gets its own subset
 ``<subset>-<label>`` (``spk/gp/spikesim-gp`` with ``gt/spikesim-gp``, ...);
@@ -60,6 +60,8 @@ __all__ = ["export_sjdd", "sjdd_noise_label", "GT_ENCODINGS", "SJDD_WINDOW"]
 
 SJDD_WINDOW = 39
 GT_ENCODINGS = ("linear", "srgb")
+#: The folder ``noise="auto"`` gives physical-mode sequences (a label: no SJDD-Net level).
+PHYSICAL_FOLDER = "phy"
 
 
 def gt_to_uint8(gt: np.ndarray, encoding: str = "linear") -> np.ndarray:
@@ -144,11 +146,8 @@ def _folders(ds: Dataset, noise: str, flag: str) -> list[tuple[str, float | None
     for s in ds:
         try:
             labels.append(sjdd_noise_label(s.meta))
-        except SpikeSimValueError:
-            kind = ((s.meta.get("sensor") or {}).get("noise") or {}).get("type")
-            example = f"{flag} phy" if flag.startswith("-") else f"{flag}='phy'"
-            raise _bad(flag, "auto", f"a folder name for {s.name} ({kind}-mode noise has "
-                            f"no SJDD-Net level), e.g. {example}") from None
+        except SpikeSimValueError:  # physical mode: no SJDD-Net level, a label of its own
+            labels.append((PHYSICAL_FOLDER, None))
     gaussian = {lab for lab, sigma in labels if sigma is not None}
     shared = gaussian.pop() if len(gaussian) == 1 else "r"  # several levels: in file names
     return [(lab if sigma is None else shared, sigma) for lab, sigma in labels]

@@ -111,10 +111,19 @@ def test_named_folder_wins_for_physical_noise(tmp_path, make_stream):
     summary = export_sjdd(src, tmp_path / "out", noise="phy")
     assert summary["noise_folder"] == "phy" and summary["samples"] == 1
     assert (tmp_path / "out" / "spk" / "phy" / "spikesim" / "seq0_000040.dat").is_file()
-    with pytest.raises(SpikeSimValueError, match=r"noise='auto'.*physical.*noise='phy'"):
-        export_sjdd(src, tmp_path / "auto")
+    auto = export_sjdd(src, tmp_path / "auto")  # physical mode: its own label, 'phy'
+    assert auto["noise_folder"] == "phy"
+    assert (tmp_path / "auto" / "spk" / "phy" / "spikesim" / "seq0_000040.dat").is_file()
     with pytest.raises(SpikeSimValueError, match="Gaussian sequences only"):
         export_sjdd(src, tmp_path / "r", noise="r")
+
+
+def test_mixed_paper_and_physical_export_each_to_its_folder(tmp_path, make_stream):
+    src = _dataset(tmp_path, make_stream, [_paper(5.0), {"type": "physical", "shot": True}],
+                   gt=(40,))
+    summary = export_sjdd(src, tmp_path / "mix", subset="s")
+    got = {(e["noise_folder"], e["subset"], e["samples"]) for e in summary["exports"]}
+    assert got == {("5", "s-5", 1), ("phy", "s-phy", 1)}
 
 
 def test_mixed_labels_export_each_to_its_folder(tmp_path, make_stream):
@@ -138,9 +147,10 @@ def test_cli_names_the_flag(tmp_path, make_stream, capsys):
     from spikesim.cli import main
 
     src = _physical(tmp_path / "p", make_stream)
-    assert main(["convert", str(src), str(tmp_path / "o"), "--sjdd", "--quiet"]) != 0
+    assert main(["convert", str(src), str(tmp_path / "o"), "--sjdd", "--noise", "r",
+                 "--quiet"]) != 0
     err = capsys.readouterr().err
-    assert "--noise 'auto' is invalid" in err and "noise=" not in err
+    assert "--noise 'r' is invalid" in err and "noise=" not in err
     assert len(err.strip().splitlines()) == 1
     assert main(["convert", str(src), str(tmp_path / "o"), "--sjdd", "--noise", "phy",
                  "--quiet"]) == 0
