@@ -10,11 +10,27 @@ from spikesim.errors import bad_value
 from spikesim.workload import RunawayWorkWarning
 
 
+def load_sensor(spec: str, overrides: dict):
+    """The sensor of a ``--sensor`` option: a preset name, or a sensor ``.json`` file
+    (:meth:`spikesim.Sensor.to_json`), with ``--set``/``--size`` overrides applied."""
+    import spikesim as ss
+    from spikesim.errors import SpikeSimFileError
+
+    path = Path(spec)
+    if path.suffix.lower() == ".json":
+        if not path.is_file():
+            raise SpikeSimFileError(f"no such sensor JSON file: {spec!r}")
+        return ss.Sensor.from_json(path.read_text()).replace(**overrides)
+    return ss.Sensor.preset(spec, **overrides)
+
+
 def register(sub) -> None:
     p = sub.add_parser("simulate", help="simulate one stream to FILE.h5 or FILE.dat")
     p.add_argument("scene", help="built-in scene name (see `spikesim scenes`) or a video path")
     p.add_argument("--motion", default=None, help="motion of a picture scene (pan, zoom, ...)")
-    p.add_argument("--sensor", default="ideal", help="sensor preset (see `spikesim presets`)")
+    p.add_argument("--sensor", default="ideal",
+                   help="sensor preset (see `spikesim presets`) or a sensor .json file (e.g. "
+                        "the sensor.json `spikesim analyze calibrate` writes)")
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                    help="override a sensor field, e.g. --set clock_hz=40000 --set cfa=mono "
                         "--set 'noise={\"type\":\"paper\",\"sigma_g\":5}'")
@@ -67,7 +83,7 @@ def run(args) -> int:
         overrides.update(height=h, width=w)
     if "cfa" in overrides and overrides["cfa"] in ("mono", "none"):
         overrides["cfa"] = None
-    sensor = ss.Sensor.preset(args.sensor, **overrides)
+    sensor = load_sensor(args.sensor, overrides)
     out = Path(args.out)
     if out.suffix.lower() not in (".h5", ".hdf5", ".dat"):
         raise bad_value("--out", args.out, "a path ending in .h5, .hdf5 or .dat")
@@ -91,6 +107,8 @@ def run(args) -> int:
                 writer.write_packed(chunk.packed)
     else:
         io.write_h5(out, run_)
+    noise = sensor.noise.to_dict()["type"] if sensor.noise is not None else "none"
     print(f"wrote {out} ({args.readouts} readouts, {sensor.height}x{sensor.width}, "
-          f"cfa={sensor.cfa or 'mono'}, sensor={args.sensor})")
+          f"cfa={sensor.cfa or 'mono'}, reset={sensor.reset}, noise={noise}, "
+          f"sensor={args.sensor}{' with --set' if args.set else ''})")
     return 0

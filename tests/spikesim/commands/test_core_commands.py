@@ -100,3 +100,21 @@ def test_cli_warnings_are_one_line_naming_the_command(tmp_path, capsys):
     lines = [ln for ln in err.splitlines() if "warning" in ln]
     assert lines and lines[0].startswith("spikesim simulate: warning: resize=(16, 16) squashes")
     assert ".py:" not in err
+
+
+def test_simulate_takes_a_sensor_json_and_says_what_it_simulated(tmp_path, capsys):
+    """--sensor takes a sensor .json (what `analyze calibrate` writes), --set still
+    overrides it, and the summary line names the reset and noise actually used."""
+    sensor = ss.Sensor(height=16, width=24, cfa=None, reset="subtract",
+                       noise=ss.noise.PhysicalNoise(charge_noise_electrons=4.0))
+    (tmp_path / "chip.json").write_text(sensor.to_json())
+    out = tmp_path / "s.h5"
+    assert main(["simulate", "astronaut", "--readouts", "30", "--sensor",
+                 str(tmp_path / "chip.json"), "--set", "clock_hz=40000", "--out", str(out)]) == 0
+    line = capsys.readouterr().out
+    assert "cfa=mono, reset=subtract, noise=physical" in line and "with --set" in line
+    got = ss.io.open_h5(out).meta["sensor"]
+    assert got["noise"]["charge_noise_electrons"] == 4.0 and got["clock_hz"] == 40000.0
+    assert main(["simulate", "astronaut", "--readouts", "30", "--sensor", "nope.json",
+                 "--out", str(tmp_path / "t.h5")]) == 1
+    assert "no such sensor JSON file: 'nope.json'" in capsys.readouterr().err
