@@ -57,7 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="readouts given to each method (default 41, or the most that fit "
                          "around --per-sequence GT readouts of shorter sequences)")
     ev.add_argument("--per-sequence", type=int, default=1,
-                    help="GT frames per sequence (default 1)")
+                    help="GT frames per sequence, spread evenly over its GT readouts "
+                         "(default 1: the first that fits; a large N scores them all)")
     ev.add_argument("--repeats", type=int, default=3, help="timed calls per frame (median)")
     ev.add_argument("--size", type=_size, default=(64, 96), help="sweep frame size HxW")
     ev.add_argument("--frames-per-scene", type=int, default=2)

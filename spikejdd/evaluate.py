@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -413,18 +414,33 @@ def panel_image(tiles: list[np.ndarray], labels: list[str], crop: int = PANEL_CR
     ch, cw = min(h, crop), min(w, crop)
     top, left = (h - ch) // 2, (w - cw) // 2
     scale = max(1, int(np.ceil(96 / max(ch, cw))))
-    strip = 14
+    line = 14  # pixels per label line
+    per_line = max(1, (cw * scale - 4) // 6)  # characters of the 6-pixel font that fit
+    wrapped = [_wrap_label(label, per_line) for label in labels]
+    strip = line * max(len(w) for w in wrapped)
     out = []
-    for img, label in zip(tiles, labels, strict=True):
+    for img, lines in zip(tiles, wrapped, strict=True):
         t = linear_to_srgb8(img[top:top + ch, left:left + cw])
         t = np.repeat(np.repeat(t, scale, axis=0), scale, axis=1)
         head = np.full((strip, t.shape[1], 3), 255, np.uint8)
-        text = label if len(label) * 6 <= t.shape[1] else label[: max(1, t.shape[1] // 6 - 1)]
-        cv2.putText(head, text, (2, strip - 4), cv2.FONT_HERSHEY_PLAIN, 0.8, (0, 0, 0), 1,
-                    cv2.LINE_AA)
+        for k, text in enumerate(lines):
+            cv2.putText(head, text, (2, line * (k + 1) - 4), cv2.FONT_HERSHEY_PLAIN, 0.8,
+                        (0, 0, 0), 1, cv2.LINE_AA)
         tile = np.concatenate([head, t], axis=0)
         out += [tile, np.full((tile.shape[0], 2, 3), 255, np.uint8)]
     return np.concatenate(out[:-1], axis=1)
+
+
+def _wrap_label(label: str, width: int) -> list[str]:
+    """``label`` in lines of at most ``width`` characters, broken after ``+ : @ /``
+    where possible (``tfp+menon2007+`` / ``nlm``), so no two labels are cut alike."""
+    lines, rest = [], label
+    while len(rest) > width:
+        cut = max(rest.rfind(c, 0, width) for c in "+:@/") + 1
+        cut = cut if cut > 0 else width
+        lines.append(rest[:cut])
+        rest = rest[cut:]
+    return lines + [rest] if rest else lines or [""]
 
 
 def _pick_panels(frames: list[Frame], limit: int) -> list[int]:
@@ -472,7 +488,10 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
     """
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
+    torch_used = "torch" in sys.modules  # before machine_info, which imports it to describe it
     machine = machine_info()
+    if not torch_used:
+        machine.pop("torch_threads", None)  # torch's default would be read as what ran
     machine["description"] = describe_machine(machine)
     result = dict(result, methods=methods, machine=machine, command=command,
                   conventions=CONVENTIONS)
@@ -486,7 +505,8 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
         md += [f"Command: `{command}`", ""]
     md += [f"Machine: {machine['description']}.", "",
            f"Device: {rt.get('device', 'cpu')}; torch threads per process: "
-           f"{machine.get('torch_threads', '-')}; self-ensemble of learned methods: "
+           f"{machine.get('torch_threads', 'torch not used')}; "
+           "self-ensemble of learned methods: "
            f"{rt.get('ensemble', DEFAULT_VIEWS)}.", "",
            f"Conventions: {CONVENTIONS}.", ""]
     if failed:

@@ -101,3 +101,33 @@ def test_per_sequence_frames_of_back_to_back_windows(tmp_path):
                                          "at most 39 readouts"):
         frames = evaluate.frames_from_dataset(tmp_path, context=41, per_sequence=3)
     assert [f.readout for f in frames] == [58]
+
+
+def test_panel_labels_wrap_instead_of_cutting_alike():
+    """Long method names wrap at + : @ / instead of being cut, so two methods that
+    share a long prefix keep labels that differ."""
+    tile = np.full((64, 96, 3), 0.5)
+    names = ["tfp+menon2007+nlm", "tfp+menon2007+bilateral"]
+    assert evaluate._wrap_label(names[0], 15) == ["tfp+menon2007+", "nlm"]
+    assert evaluate._wrap_label("sjdd@runs/mine/best.pt", 15) == ["sjdd@runs/mine/", "best.pt"]
+    panel = evaluate.panel_image([tile, tile], names)
+    strip = panel.shape[0] - 64  # 64×96 tiles are not enlarged; the label strip is above
+    assert strip == 28  # two lines
+    w = (panel.shape[1] - 2) // 2
+    assert not np.array_equal(panel[:strip, :w], panel[:strip, w + 2:])
+
+
+def test_report_says_torch_was_not_used_by_classical_methods(data_dir, tmp_path):
+    """torch's default thread count is not reported as the evaluation's when no
+    method used torch (a fresh process: nothing else has imported it)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "r"
+    code = ("from spikejdd.cli import main; import sys; sys.exit(main(['evaluate', '--data', "
+            f"{str(data_dir)!r}, '--methods', 'tfp+bilinear', '--repeats', '1', '--out', "
+            f"{str(out)!r}, '--quiet']))")
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
+    md = out.with_suffix(".md").read_text()
+    assert "torch threads per process: torch not used" in md
+    assert "thread(s)" not in md.split("Device:")[0]  # nor in the machine line
