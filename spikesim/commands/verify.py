@@ -6,7 +6,13 @@ import json
 
 from spikesim.errors import SpikeSimValueError
 
-__all__ = ["register", "run"]
+__all__ = ["EXIT_UNCHECKED", "exit_status", "register", "run", "summary_line"]
+
+
+#: Exit status when nothing is damaged but some file could not be checked (a .dat of
+#: unknown frame size).  0: every file checked and ok; 1: something is damaged; 2 is
+#: argparse's usage error.
+EXIT_UNCHECKED = 3
 
 
 def register(subparsers) -> None:
@@ -14,7 +20,9 @@ def register(subparsers) -> None:
         "verify", help="read every chunk of spike files and report damage",
         description="Open each .h5 file (or every file under a folder), read all its chunks "
                     "against their checksums and its ground truth for NaN/inf; check .dat "
-                    "lengths. Exit status 1 when anything is damaged.",
+                    "lengths. Exit status 0 when every file was checked and is ok, 1 when "
+                    "anything is damaged, 3 when nothing is damaged but some .dat file could "
+                    "not be checked (its frame size is unknown: give --height and --width).",
     )
     p.add_argument("path", help="a .h5 or .dat file, or a folder")
     p.add_argument("--height", type=int, help="frame height of .dat files (else guessed)")
@@ -23,9 +31,41 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+def _line(r: dict) -> str:
+    """The line printed for one report."""
+    status = r.get("status")
+    if status == "damaged":
+        advice = f"; to fix: {r['advice']}" if r.get("advice") else ""
+        return f"DAMAGED {r['path']}: " + "; ".join(r["problems"]) + advice
+    if status == "unchecked":
+        return f"UNCHECKED {r['path']}: " + "; ".join(r["notes"])
+    if status == "temp":
+        return f"temp    {r['path']}: " + "; ".join(r["notes"])
+    extra = f" ({r['readouts']} readouts)" if "readouts" in r else ""
+    note = f"; note: {'; '.join(r['notes'])}" if r["notes"] else ""
+    return f"ok      {r['path']}{extra}{note}"
+
+
+def summary_line(counts: dict) -> str:
+    """``N file(s): C checked, K ok, D damaged, U unchecked`` and how to check the rest."""
+    line = (f"{counts['files']} file(s): {counts['checked']} checked, {counts['ok']} ok, "
+            f"{counts['damaged']} damaged, {counts['unchecked']} unchecked")
+    if counts["unchecked"]:
+        line += (" (not verified: give the .dat frame size with --height and --width to check "
+                 f"{'it' if counts['unchecked'] == 1 else 'them'})")
+    return line
+
+
+def exit_status(counts: dict) -> int:
+    """1 if anything is damaged, else 3 if some file was not checked, else 0."""
+    if counts["damaged"]:
+        return 1
+    return EXIT_UNCHECKED if counts["unchecked"] else 0
+
+
 def run(args) -> int:
     from spikesim._validate import check_int
-    from spikesim.io.verify import verify
+    from spikesim.io.verify import summarize, verify
 
     for flag, value in (("--height", args.height), ("--width", args.width)):
         if value is not None:
@@ -34,21 +74,11 @@ def run(args) -> int:
         raise SpikeSimValueError("give both --height and --width (the .dat frame size), or "
                                  "neither to have it guessed")
     reports = verify(args.path, args.height, args.width)
+    counts = summarize(reports)
     if args.json:
         print(json.dumps(reports, indent=1))
     else:
         for r in reports:
-            if not r["ok"]:
-                print(f"DAMAGED {r['path']}: " + "; ".join(r["problems"]))
-            elif r.get("unchecked"):
-                print(f"unknown {r['path']}: " + "; ".join(r["notes"]))
-            elif r["kind"] == "temp":
-                print(f"temp    {r['path']}: " + "; ".join(r["notes"]))
-            else:
-                extra = f" ({r['readouts']} readouts)" if "readouts" in r else ""
-                note = f"; note: {'; '.join(r['notes'])}" if r["notes"] else ""
-                print(f"ok      {r['path']}{extra}{note}")
-        bad = sum(not r["ok"] for r in reports)
-        files = sum(r["kind"] != "temp" for r in reports)
-        print(f"{files - bad} of {files} file(s) ok" + (f", {bad} damaged" if bad else ""))
-    return 1 if any(not r["ok"] for r in reports) else 0
+            print(_line(r))
+        print(summary_line(counts))
+    return exit_status(counts)

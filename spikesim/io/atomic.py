@@ -27,6 +27,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from spikesim.errors import SpikeSimFileError
+from spikesim.io._checks import check_flag, check_path_type
 
 __all__ = [
     "atomic_path",
@@ -171,7 +172,8 @@ def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Pa
     >>> Path("table.csv").read_text().splitlines()
     ['a,b', '1,2']
     """
-    final = Path(final)
+    overwrite = check_flag("overwrite", overwrite)
+    final = check_path_type("final", final)
     parent = final.parent if str(final.parent) else Path(".")
     if not parent.is_dir():
         raise SpikeSimFileError(f"output folder {str(parent)!r} does not exist: create it "

@@ -31,7 +31,14 @@ import numpy as np
 
 from spikesim._validate import check_crop, check_window
 from spikesim.cfa import normalize_cfa
-from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimTypeError, bad_value
+from spikesim.errors import (
+    SpikeSimFileError,
+    SpikeSimFormatError,
+    SpikeSimTypeError,
+    SpikeSimValueError,
+    bad_value,
+)
+from spikesim.io._checks import check_flag, check_path_type
 from spikesim.io._decode import decode_frames
 from spikesim.io._guard import write_error
 from spikesim.io._runs import contiguous_chunks
@@ -69,32 +76,57 @@ def dat_frame_bytes(height: int, width: int) -> int:
     return (int(height) * int(width) + 7) // 8
 
 
-def guess_dat_shape(n_bytes: int, path: str | os.PathLike = "") -> tuple[int, int, str]:
+def guess_dat_shape(n_bytes: int, path: str | os.PathLike = "",
+                    partial: str = "error") -> tuple[int, int, str]:
     """Pick the first of :data:`KNOWN_SENSOR_SIZES` whose frame size divides ``n_bytes``.
+
+    With ``partial="drop"`` (a truncated capture), when no known size divides
+    ``n_bytes``, the first known size of which at least one whole frame fits
+    is taken instead; the trailing partial frame is then for the reader to
+    drop (with its warning).
 
     Returns ``(height, width, message)``; the message says what was assumed and
     which other known sizes would also have fitted.  Raises
     :class:`SpikeSimFormatError` when none fits.
     """
-    fits = [
-        (h, w, d) for h, w, d in KNOWN_SENSOR_SIZES
-        if n_bytes and n_bytes % dat_frame_bytes(h, w) == 0
-    ]
+    if partial not in ("error", "drop"):
+        raise bad_value("partial", partial, "'error' or 'drop'")
+    fits = _known_sizes_dividing(n_bytes)
+    dropping = not fits and partial == "drop"
+    if dropping:
+        fits = [(h, w, d) for h, w, d in KNOWN_SENSOR_SIZES if n_bytes >= dat_frame_bytes(h, w)]
     if not fits:
-        known = ", ".join(f"{w}x{h}" for h, w, _ in KNOWN_SENSOR_SIZES)
-        raise SpikeSimFormatError(
-            f"cannot guess the frame size of {str(path) or 'the .dat file'} ({n_bytes} bytes): "
-            f"it is not a whole number of frames of any known sensor size ({known}, W x H); "
-            "pass height and width (--height and --width on the command line)"
-        )
+        raise _cannot_guess(n_bytes, path, partial)
     h, w, desc = fits[0]
     n = n_bytes // dat_frame_bytes(h, w)
     msg = f"assumed {w}x{h} (W x H, {desc}): {n} readouts"
+    if dropping:
+        msg += (f" and {n_bytes - n * dat_frame_bytes(h, w)} trailing bytes of a partial "
+                "frame (no known size is a whole number of frames)")
     if len(fits) > 1:
         others = ", ".join(f"{ww}x{hh}" for hh, ww, _ in fits[1:])
         msg += (f"; the size also fits {others}: pass height and width (--height and --width "
                 "on the command line) to choose")
     return h, w, msg
+
+
+def _known_sizes_dividing(n_bytes: int) -> list[tuple[int, int, str]]:
+    """The known sensor sizes of which ``n_bytes`` is a whole number (>= 1) of frames."""
+    return [(h, w, d) for h, w, d in KNOWN_SENSOR_SIZES
+            if n_bytes and n_bytes % dat_frame_bytes(h, w) == 0]
+
+
+def _cannot_guess(n_bytes: int, path: str | os.PathLike, partial: str) -> SpikeSimFormatError:
+    """The error of a size that fits no known sensor (with what else to try)."""
+    known = ", ".join(f"{w}x{h}" for h, w, _ in KNOWN_SENSOR_SIZES)
+    hint = ("" if partial == "drop" else
+            "; or, for a truncated capture, partial='drop' (--partial drop) to drop the "
+            "partial frame at the end")
+    return SpikeSimFormatError(
+        f"cannot guess the frame size of {str(path) or 'the .dat file'} ({n_bytes} bytes): "
+        f"it is not a whole number of frames of any known sensor size ({known}, W x H); "
+        f"pass height and width (--height and --width on the command line){hint}"
+    )
 
 
 def _check_dim(name: str, value: object) -> int:
@@ -166,7 +198,7 @@ class DatFile:
         self.clock_hz = float(clock_hz) if clock_hz else 0.0
         self.gt_index = np.zeros(0, np.int64)
         self.has_clean = False
-        self.flip = bool(flip)
+        self.flip = check_flag("flip", flip)
         if partial not in ("error", "drop"):
             raise bad_value("partial", partial, "'error' or 'drop'")
         if not self.path.is_file():
@@ -176,7 +208,7 @@ class DatFile:
             raise SpikeSimFormatError(f"{str(self.path)!r} is empty (0 bytes): no spike frames")
         self.guess_message = None
         if height is None and width is None:
-            height, width, self.guess_message = guess_dat_shape(n_bytes, self.path)
+            height, width, self.guess_message = guess_dat_shape(n_bytes, self.path, partial)
             warnings.warn(f"{self.path.name}: {self.guess_message}", UserWarning, stacklevel=2)
         elif height is None or width is None:
             raise bad_value("height/width", (height, width), "both given or both None (guess)")
@@ -275,6 +307,7 @@ class DatFile:
             Return (length, h, ceil(w/8)) packed bits (little bit order)
             instead of (length, h, w) 0/1 bytes.
         """
+        packed = check_flag("packed", packed)
         lay = self._layout
         start, length = check_window(start, length, lay.n_readouts)
         top, left, h, w = check_crop(crop, lay.height, lay.width - lay.head)
@@ -363,16 +396,17 @@ class DatWriter:
             w.write(frames)                  # or (t, H, W) 0/1
 
     An exception inside the block removes the temporary file and leaves no
-    file under the final name.
+    file under the final name; so does a block that writes no frame (a file
+    with no readout is not a spike file: readers refuse it), with an error.
     """
 
     def __init__(self, path: str | os.PathLike, height: int, width: int, flip: bool = True,
                  overwrite: bool = True):
-        self.path = Path(path)
+        self.path = _check_dat_path(path)
         self.height = _check_dim("height", height)
         self.width = _check_dim("width", width)
-        self.flip = bool(flip)
-        self.overwrite = overwrite
+        self.flip = check_flag("flip", flip)
+        self.overwrite = check_flag("overwrite", overwrite)
         self.n_readouts = 0
         self._ctx = None
         self._fh = None
@@ -390,6 +424,10 @@ class DatWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> bool:
+        if exc is None and self.n_readouts == 0:
+            exc = _nothing_written(self.path)
+            self._discard(exc)
+            raise exc
         if exc is None:
             try:
                 self._fh.close()
@@ -398,11 +436,15 @@ class DatWriter:
                 self._ctx.__exit__(type(failed), failed, None)
                 raise failed from None
             return bool(self._ctx.__exit__(None, None, None))
+        return self._discard(exc, exc_type, tb)
+
+    def _discard(self, exc: BaseException, exc_type=None, tb=None) -> bool:
+        """Close and delete the temporary file (the write failed or wrote nothing)."""
         try:
             self._fh.close()
         except OSError:
             pass
-        return bool(self._ctx.__exit__(exc_type, exc, tb))
+        return bool(self._ctx.__exit__(exc_type or type(exc), exc, tb))
 
     def write_packed(self, packed: np.ndarray) -> None:
         packed = np.asarray(packed)
@@ -424,6 +466,22 @@ class DatWriter:
         self.write_packed(np.packbits(frames.astype(bool), axis=-1, bitorder="little"))
 
 
+def _check_dat_path(path: object) -> Path:
+    """The output path of a ``.dat`` writer: any file name but an HDF5 one."""
+    p = check_path_type("path", path)
+    if p.suffix.lower() in (".h5", ".hdf5"):
+        raise bad_value("path", str(p), "a .dat file name (for a spikesim HDF5 file: "
+                        "spikesim.io.write_h5 or H5Writer)")
+    return p
+
+
+def _nothing_written(path: Path) -> SpikeSimValueError:
+    """The error of a writer closed before any readout was written."""
+    return SpikeSimValueError(
+        f"no readout was written to {str(path)!r}: a spike file needs at least one readout "
+        "(readers refuse an empty one), so no file was made; write frames before closing")
+
+
 def write_dat(path: str | os.PathLike, spikes, flip: bool = True, overwrite: bool = True) -> int:
     """Write spikes to a PKU ``.dat`` file atomically; returns the number of readouts.
 
@@ -439,9 +497,13 @@ def write_dat(path: str | os.PathLike, spikes, flip: bool = True, overwrite: boo
         twin are not stored (the format has no place for them).
     flip : bool
         Store upside down (PKU convention, default True).
+    overwrite : bool
+        Replace an existing file of the same name (atomically).
 
     The file appears under ``path`` only once complete: an error part-way
-    (in the simulation too) leaves no file.
+    (in the simulation too) leaves no file, and so do spikes with no readout
+    (an error: readers refuse an empty ``.dat``).  A path ending in ``.h5`` or
+    ``.hdf5`` is refused (use :func:`~spikesim.io.write_h5` for those).
     """
     if hasattr(spikes, "packed") and hasattr(spikes, "width"):
         packed = np.asarray(spikes.packed)
@@ -453,8 +515,10 @@ def write_dat(path: str | os.PathLike, spikes, flip: bool = True, overwrite: boo
     if isinstance(meta, dict) and hasattr(spikes, "__iter__"):
         return _write_run(path, spikes, meta, flip, overwrite)
     frames = _as_frames(spikes)
-    if frames.shape[1] < 1 or frames.shape[2] < 1:
-        raise bad_value("spikes.shape", frames.shape, "H >= 1 and W >= 1")
+    if min(frames.shape) < 1:
+        raise bad_value("spikes.shape", frames.shape,
+                        "(T, H, W) with T >= 1 readout (a .dat file needs at least one), "
+                        "H >= 1 and W >= 1")
     with DatWriter(path, frames.shape[1], frames.shape[2], flip=flip, overwrite=overwrite) as w:
         w.write(frames)
     return w.n_readouts

@@ -35,8 +35,9 @@ n+19`` (39, centred on ``n``) and the GT of readout ``n``.
 Noise folders: a named folder (``noise="phy"``, ``--noise phy``) takes every
 sequence whatever its noise model (physical-mode data included).  With
 ``noise="auto"`` one kind of noise gives one folder (several Gaussian levels
-give ``r``, physical-mode noise, which has no SJDD-Net level, ``phy``); a **mixed** dataset (e.g. GN and GPN sequences) exports each
-label to its own folder, and since the loader pairs ``spk/<noise>/<subset>``
+give ``r``, physical-mode noise, which has no SJDD-Net level, ``phy``); a
+**mixed** dataset (e.g. GN and GPN sequences) exports each label to its own
+folder, and since the loader pairs ``spk/<noise>/<subset>``
 with ``gt/<subset>`` by sorted name, each label also gets its own subset
 ``<subset>-<label>`` (``spk/gp/spikesim-gp`` with ``gt/spikesim-gp``, ...);
 the summary lists every (noise, subset) pair to pass to the SJDD-Net scripts.

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, SpikeSimValueError, bad_value
+from spikesim.io._checks import check_flag
 from spikesim.io.atomic import atomic_path, is_temp_name
 from spikesim.io.h5 import Sequence, read_header
 
@@ -77,7 +78,8 @@ def build_index(folder: str | os.PathLike, write: bool = True, progress: bool = 
     :class:`SpikeSimFormatError` naming it.  Returns the index dict.
     """
     folder = _check_folder(folder)
-    index = _scan(folder, progress)
+    write = check_flag("write", write)
+    index = _scan(folder, check_flag("progress", progress))
     if write:
         with atomic_path(folder / INDEX_NAME) as tmp:
             tmp.write_text(json.dumps(index, indent=1, sort_keys=True))
@@ -136,6 +138,8 @@ def resolve_dataset(path: str | os.PathLike, split: str | None = None) -> Path:
     choice is missing or wrong.
     """
     p = Path(path)
+    if not p.exists() and p.suffix:
+        raise SpikeSimFileError(f"no such file or dataset folder: {str(p)!r}")
     if p.is_file():
         if split is not None:
             raise bad_value("split", split, f"no split: {str(p)!r} is a single file")

@@ -5,26 +5,77 @@ Fletcher-32 checksum (files written since checksums were added) and each
 ground-truth value for NaN and infinity.  :func:`verify` does all of it for a
 file or, recursively, for a folder, and also lists the temporary files that
 killed writers left behind.  PKU ``.dat`` files carry no checksum: only their
-length can be checked.
+length can be checked, and only at a known frame size.
+
+Each report has a ``status``: ``"ok"`` (checked, nothing wrong), ``"damaged"``,
+``"unchecked"`` (a ``.dat`` whose frame size is unknown: give ``height`` and
+``width``) or ``"temp"`` (a stale temporary file).  ``ok`` is True only for
+``"ok"`` and ``"temp"``: an unchecked file is not reported as ok.  A damaged
+file inside a dataset built by ``spikesim dataset`` gets ``advice`` on
+remaking it.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
 from spikesim.errors import SpikeSimError, SpikeSimFileError, SpikeSimFormatError
 
-__all__ = ["verify", "verify_file"]
+__all__ = ["dataset_advice", "summarize", "verify", "verify_file"]
 
 #: Readouts read at a time.
 BLOCK_READOUTS = 512
 
 
+def _report(path: Path, kind: str, *notes: str) -> dict:
+    """A new report of a file, ok until something is found."""
+    return {"path": str(path), "kind": kind, "ok": True, "status": "ok", "problems": [],
+            "notes": list(notes)}
+
+
+def _damaged(report: dict, exc: BaseException) -> None:
+    """Mark ``report`` damaged by ``exc``, with advice when the file belongs to a dataset."""
+    report.update(ok=False, status="damaged")
+    report["problems"].append(str(exc))
+    advice = dataset_advice(Path(report["path"]))
+    if advice:
+        report["advice"] = advice
+
+
+def _dataset_root(path: Path) -> Path | None:
+    """The dataset root ``path`` belongs to: its folder or the folder above, when it holds
+    the ``plan.json`` or ``build_summary.json`` of a ``spikesim dataset`` build."""
+    for folder in (path.parent, path.parent.parent):
+        if (folder / "plan.json").is_file() or (folder / "build_summary.json").is_file():
+            return folder
+    return None
+
+
+def _manifest_of(root: Path) -> str:
+    """The manifest a dataset was built from, as its ``plan.json`` records it."""
+    try:
+        manifest = json.loads((root / "plan.json").read_text()).get("manifest")
+    except (OSError, ValueError, AttributeError):
+        manifest = None
+    return manifest if isinstance(manifest, str) and manifest else "MANIFEST"
+
+
+def dataset_advice(path: Path) -> str | None:
+    """How to remake a damaged file of a dataset folder (None for a file of no dataset)."""
+    root = _dataset_root(path)
+    if root is None:
+        return None
+    return (f"it belongs to the dataset built in {str(root)!r}: delete it (rm {str(path)!r}) "
+            f"and run the same build again (spikesim dataset {_manifest_of(root)} --out "
+            f"{str(root)!r}, with the same --set values), which remakes the missing file")
+
+
 def _verify_h5(path: Path) -> dict:
     from spikesim.io.h5 import open_h5
 
-    report = {"path": str(path), "kind": "h5", "ok": True, "problems": [], "notes": []}
+    report = _report(path, "h5")
     try:
         with open_h5(path) as seq:
             f = seq._h5()
@@ -43,8 +94,7 @@ def _verify_h5(path: Path) -> dict:
             report["readouts"] = seq.n_readouts
             report["gt_frames"] = len(seq.gt_index)
     except SpikeSimError as exc:
-        report["ok"] = False
-        report["problems"].append(str(exc))
+        _damaged(report, exc)
     return report
 
 
@@ -53,8 +103,7 @@ def _verify_dat(path: Path, height: int | None = None, width: int | None = None)
     size when not given; a size that fits no known sensor is unchecked, not damaged)."""
     from spikesim.io.dat import guess_dat_shape
 
-    report = {"path": str(path), "kind": "dat", "ok": True, "problems": [],
-              "notes": [".dat files carry no checksum: only the length was checked"]}
+    report = _report(path, "dat", ".dat files carry no checksum: only the length was checked")
     try:
         size = path.stat().st_size
         if size == 0:
@@ -63,9 +112,10 @@ def _verify_dat(path: Path, height: int | None = None, width: int | None = None)
             try:
                 height, width, _ = guess_dat_shape(size, path)
             except SpikeSimError:
-                report["notes"] = ["frame size unknown: pass --height and --width to check "
-                                   "the length"]
-                report["unchecked"] = True
+                report["notes"] = ["frame size unknown (the size fits no known sensor): not "
+                                   "checked; pass --height and --width (height= and width= in "
+                                   "Python) to check the length"]
+                report.update(ok=False, status="unchecked", unchecked=True)
                 return report
             report["notes"].append(f"frame size guessed as {height}x{width} (HxW); pass "
                                    "--height and --width if it is another")
@@ -76,8 +126,7 @@ def _verify_dat(path: Path, height: int | None = None, width: int | None = None)
                 f"{frame} per frame): truncated, or another frame size")
         report["readouts"] = size // frame
     except (SpikeSimError, OSError) as exc:
-        report["ok"] = False
-        report["problems"].append(str(exc))
+        _damaged(report, exc)
     return report
 
 
@@ -97,8 +146,9 @@ def verify(path: str | os.PathLike, height: int | None = None,
     (``height``/``width``: the frame size of ``.dat`` files, guessed when not given).
 
     Stale temporary files (left by killed writers) appear as reports with
-    ``kind="temp"`` and ``ok=True`` (they never sit under a final name; the
-    next write removes them).
+    ``kind="temp"``, ``status="temp"`` and ``ok=True`` (they never sit under a
+    final name; the next write removes them).  A ``.dat`` of unknown frame size
+    has ``status="unchecked"`` and ``ok=False`` (see :func:`summarize`).
     """
     from spikesim.io.atomic import is_stale_temp, is_temp_name
 
@@ -113,12 +163,21 @@ def verify(path: str | os.PathLike, height: int | None = None,
             continue
         if is_temp_name(p):
             if is_stale_temp(p):
-                reports.append({"path": str(p), "kind": "temp", "ok": True, "problems": [],
-                                "notes": ["stale temporary file of a killed writer (removed by "
-                                          "the next write into this folder)"]})
+                reports.append(_report(p, "temp", "stale temporary file of a killed writer "
+                                       "(removed by the next write into this folder)")
+                               | {"status": "temp"})
             continue
         if p.suffix.lower() in (".h5", ".hdf5", ".dat"):
             reports.append(verify_file(p, height, width))
     if not reports:
         raise SpikeSimFileError(f"{str(path)!r} holds no .h5, .hdf5 or .dat file")
     return reports
+
+
+def summarize(reports: list[dict]) -> dict:
+    """Counts of files by status: ``files`` (temporaries left out), ``checked``, ``ok``,
+    ``damaged``, ``unchecked`` and ``temp``."""
+    count = {status: sum(r.get("status") == status for r in reports)
+             for status in ("ok", "damaged", "unchecked", "temp")}
+    files = len(reports) - count["temp"]
+    return {"files": files, "checked": files - count["unchecked"], **count}

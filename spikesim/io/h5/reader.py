@@ -13,9 +13,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from spikesim._validate import check_crop, check_window
+from spikesim._validate import check_crop, check_window, is_int
 from spikesim.bits import crop_packed
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, bad_value
+from spikesim.io._checks import check_flag
 from spikesim.io._compression import have_hdf5plugin
 from spikesim.io.h5.format import READ_CACHE_BYTES, header_of
 
@@ -132,6 +133,8 @@ class Sequence:
         (little bit order, zero padding) when ``packed``.  ``crop`` is
         ``(top, left, height, width)`` in pixels.
         """
+        packed = check_flag("packed", packed)
+        clean = check_flag("clean", clean)
         start, length = check_window(start, length, self.n_readouts)
         top, left, h, w = check_crop(crop, self.height, self.width)
         b0, b1 = left // 8, (left + w + 7) // 8
@@ -149,14 +152,18 @@ class Sequence:
         return self.read_window(0, None, packed=True, clean=clean)
 
     def read_gt(self, k: int, crop: tuple | None = None) -> np.ndarray:
-        """Ground-truth frame at position ``k`` of ``gt_index``: (h, w, 3) float32 linear RGB."""
+        """Ground-truth frame at position ``k`` of ``gt_index``: (h, w, 3) float32 linear RGB.
+
+        ``k`` counts from 0 like a readout index in :meth:`read_window`; a negative
+        position is refused there and here alike.
+        """
         n = len(self.gt_index)
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not -n <= k < n:
+        if not is_int(k) or not 0 <= k < n:
             raise bad_value("k", k, f"a position in gt_index, in [0, {n - 1}]" if n else
                             f"nothing: {self.name!r} has no ground truth")
         top, left, h, w = check_crop(crop, self.height, self.width)
         try:
-            return _finite_gt(self.path, self._h5()["gt"][int(k) % n, top:top + h,
+            return _finite_gt(self.path, self._h5()["gt"][int(k), top:top + h,
                                                             left:left + w, :])
         except OSError as exc:
             raise _read_error(self.path, exc) from exc

@@ -17,8 +17,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from spikesim._validate import check_int
 from spikesim._version import __version__
-from spikesim.errors import SpikeSimFileError, SpikeSimTypeError, bad_value
+from spikesim.errors import SpikeSimFileError, SpikeSimTypeError, SpikeSimValueError, bad_value
+from spikesim.io._checks import check_flag, check_out_path
 from spikesim.io._compression import DEFAULT_COMPRESSION, compression_kwargs
 from spikesim.io._guard import GuardedFile, write_error
 from spikesim.io._runs import contiguous_chunks
@@ -42,7 +44,8 @@ class H5Writer:
     Parameters
     ----------
     path : path
-        Final file name (``.h5``).
+        Final file name, ending in ``.h5`` or ``.hdf5`` (a ``.dat`` file is
+        written by :class:`~spikesim.io.DatWriter`).
     meta : dict
         Metadata of the stream (``SpikeStream.meta``): must hold ``height`` and
         ``width``; ``cfa``, ``clock_hz``, ``seed``, ``sensor``, ``scene`` and
@@ -57,11 +60,13 @@ class H5Writer:
 
     Use as a context manager; ``append`` packed readouts in order and
     ``add_gt`` ground-truth frames at any time.  An exception inside the block
-    deletes the temporary file.
+    deletes the temporary file; so does a block that appends no readout (an
+    error: a file with no readout is not a spike file, readers refuse it).
     """
 
     def __init__(self, path: str | os.PathLike, meta: dict, compression: str = DEFAULT_COMPRESSION,
                  clean: bool = False, overwrite: bool = True):
+        path = _check_h5_path(path)
         if not isinstance(meta, dict):
             raise SpikeSimTypeError(f"meta must be a dict, got {type(meta).__name__}")
         for key in ("height", "width"):
@@ -73,10 +78,10 @@ class H5Writer:
         self.height = int(meta["height"])
         self.width = int(meta["width"])
         self.nbytes = (self.width + 7) // 8
-        self.clean = bool(clean)
+        self.clean = check_flag("clean", clean)
         self._filter = compression_kwargs(compression)
         self.compression = compression
-        self.overwrite = overwrite
+        self.overwrite = check_flag("overwrite", overwrite)
         self.n_readouts = 0
         self._file = None
         self._guard = None
@@ -184,6 +189,11 @@ class H5Writer:
         self._check_io()
 
     def _finish(self) -> None:
+        if self.n_readouts == 0:
+            raise SpikeSimValueError(
+                f"no readout was written to {str(self.path)!r}: a spike file needs at least one "
+                "readout (readers refuse an empty one), so no file was made; append readouts "
+                "before closing")
         f = self._file
         idx = f["gt_index"][:]
         if idx.size and idx.max() >= self.n_readouts:
@@ -246,7 +256,9 @@ def write_h5(path: str | os.PathLike, source, compression: str = DEFAULT_COMPRES
     """Write a ``SpikeStream`` or a chunk run (``ss.simulate_chunks``) to one HDF5 file.
 
     A run is consumed chunk by chunk and never held whole in memory.  The file
-    appears under ``path`` only once complete.  Returns the path.
+    appears under ``path`` (ending in ``.h5`` or ``.hdf5``; a ``.dat`` file is
+    written by :func:`~spikesim.io.write_dat`) only once complete; a source
+    with no readout is an error and leaves no file.  Returns the path.
 
     Examples
     --------
@@ -259,6 +271,9 @@ def write_h5(path: str | os.PathLike, source, compression: str = DEFAULT_COMPRES
     >>> bool((back.packed == stream.packed).all()), back.gt.shape, back.gt_index.tolist()
     (True, (1, 16, 16, 3), [20])
     """
+    path = _check_h5_path(path)
+    check_flag("progress", progress)
+    check_int("block_readouts", block_readouts, 1, unit="readouts")
     meta = getattr(source, "meta", None)
     if not isinstance(meta, dict):
         raise SpikeSimTypeError(
@@ -282,6 +297,12 @@ def write_h5(path: str | os.PathLike, source, compression: str = DEFAULT_COMPRES
         else:
             _write_chunks(w, source, bar)
     return Path(path)
+
+
+def _check_h5_path(path: object) -> Path:
+    """The output path of an HDF5 writer: a str or PathLike ending in .h5 or .hdf5."""
+    return check_out_path("path", path, (".h5", ".hdf5"),
+                          "a PKU .dat file use spikesim.io.write_dat or DatWriter")
 
 
 def _write_chunks(w: H5Writer, run: Iterable, bar) -> None:
