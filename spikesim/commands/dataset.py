@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 
 def register(sub) -> None:
@@ -49,16 +50,17 @@ def run(args) -> int:
     if args.dry_run:
         est = estimate_dataset(manifest, workers=args.workers, limit=args.limit,
                                dask_local=args.dask_local, out_dir=args.out)
-        print(json.dumps(est, indent=2))
+        print(json.dumps(est, indent=2))  # stdout holds only the JSON: the summary is for people
         print(f"plan: {est['sequences']} sequence{'' if est['sequences'] == 1 else 's'} "
               f"({est['by_split']}), {est['to_make']} to "
               f"make, {est['px_readouts']:.3g} pixel-readouts, about "
               f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s "
-              f"({est['executor']}, {est['startup_seconds']:.1f} s of it start-up)")
+              f"({est['executor']}, {est['startup_seconds']:.1f} s of it start-up)",
+              file=sys.stderr)
         if est.get("compile_seconds"):
             print(f"(this dry run also compiled the simulation kernels, "
                   f"{est['compile_seconds']:.0f} s: a one-off after installing or upgrading "
-                  "spikesim, not counted above)")
+                  "spikesim, not counted above)", file=sys.stderr)
         return 0
     if not args.out:
         raise SpikeSimValueError("--out is required (the output folder)")

@@ -31,6 +31,7 @@ import os
 import sys
 import tempfile
 import time
+import warnings
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass, field
@@ -245,7 +246,23 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         if (out / split).is_dir():
             build_index(out / split)
     _write_summary(out / "build_summary.json", summary)
+    if limit is None:
+        _warn_unplanned(out, tasks)
     return summary
+
+
+def _warn_unplanned(out: Path, tasks: list[dict]) -> None:
+    """Warn about sequence files in the split folders that this plan does not make (left
+    by a build of an earlier version of the manifest): they are indexed and read too."""
+    planned = {t["file"] for t in tasks}
+    extra = sorted(f"{p.parent.name}/{p.name}" for split in {t["split"] for t in tasks}
+                   for p in (out / split).glob("*.h5") if f"{split}/{p.name}" not in planned)
+    if extra:
+        shown = ", ".join(extra[:3]) + (f" and {len(extra) - 3} more" if len(extra) > 3 else "")
+        warnings.warn(f"{len(extra)} sequence file(s) in {out} are not in this manifest's plan "
+                      f"({shown}), left by an earlier build: they are indexed and read with "
+                      "the rest; delete them (and re-run) if the manifest dropped them",
+                      UserWarning, stacklevel=3)
 
 
 def _record_finished(pending: list[dict], out: Path, summary: BuildSummary) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import textwrap
+import warnings
 
 import numpy as np
 import pytest
@@ -290,3 +291,35 @@ def test_video_sources_are_listed_from_a_reds_root(tmp_path):
     assert [t.scene["sequence"] for t in tasks] == ["000", "001"]
     s = build_dataset(m, tmp_path / "out", progress=False)
     assert s.done == 2, s.failures
+
+
+def test_cli_dry_run_prints_json_alone_on_stdout(tmp_path, capsys):
+    """`spikesim dataset --dry-run` writes only the JSON estimate to stdout (a script can
+    json.load it); the one-line plan for people goes to stderr."""
+    import json
+
+    from spikesim.cli import main
+
+    toml = tmp_path / "m.toml"
+    toml.write_text('[dataset]\nname = "t"\nseed = 5\nsize = [24, 40]\nwindow = 9\n'
+                    'samples_per_sequence = 2\n[sensor]\npreset = "ideal"\n'
+                    '[[noise]]\nmode = "paper"\nlabel = "GN"\nsigma_g = 5\n'
+                    '[[sources]]\nkind = "procedural"\nscenes = ["astronaut"]\n'
+                    'motions = ["pan"]\ncount = 2\nsplit = "train"\n')
+    assert main(["dataset", str(toml), "--dry-run"]) == 0
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["sequences"] == 2
+    assert cap.err.startswith("plan: 2 sequences")
+
+
+def test_files_the_plan_no_longer_makes_are_warned_about(tmp_path):
+    """A manifest edited to make fewer sequences leaves the earlier build's extra files
+    in the split folder, where they are indexed: the build says so."""
+    out = tmp_path / "ds"
+    build_dataset(parse_manifest(small_manifest(count=3)), out, progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        build_dataset(parse_manifest(small_manifest(count=3)), out, progress=False)  # same
+    with pytest.warns(UserWarning, match=r"1 sequence file\(s\) in .* not in this manifest's "
+                                         r"plan \(train/.*\.h5\)"):
+        build_dataset(parse_manifest(small_manifest(count=2)), out, progress=False)

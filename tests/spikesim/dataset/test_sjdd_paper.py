@@ -57,10 +57,10 @@ def test_dry_run_and_a_build(roots, tmp_path, capsys):
     reds, davis = roots
     sets = ["--set", f"REDS={reds}", "--set", f"DAVIS={davis}"]
     assert main(["dataset", "builtin:sjdd-paper", *sets, "--dry-run"]) == 0
-    out = capsys.readouterr().out
-    est, _ = json.JSONDecoder().raw_decode(out)
+    cap = capsys.readouterr()
+    est = json.loads(cap.out)  # the JSON alone; the plan line is on stderr
     assert est["sequences"] == 46 and est["estimated_bytes"] > 0
-    assert est["estimated_seconds"] > 0 and "MiB" in out
+    assert est["estimated_seconds"] > 0 and "MiB" in cap.err
     assert main(["dataset", "builtin:sjdd-paper", *sets, "--out", str(tmp_path),
                  "--limit", "3"]) == 0
     index = build_index(tmp_path / "train-gn")
