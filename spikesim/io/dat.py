@@ -59,6 +59,8 @@ __all__ = [
 
 #: Head columns at the start of each row of a raw 416-wide capture.
 RAW_HEAD_COLUMNS = 16
+#: Stored width of a raw PKU capture with its head columns (400 image columns + 16).
+RAW_WIDTH = 400 + RAW_HEAD_COLUMNS
 
 #: Sensor sizes tried, in this order, when a reader is not told the size:
 #: ``(height, width, description)`` with width as stored in the file.
@@ -218,6 +220,12 @@ class DatFile:
             raise bad_value("head_columns", head_columns, f"an integer in [0, {width - 1}]")
         if not 0 <= head_columns < width:
             raise bad_value("head_columns", head_columns, f"an integer in [0, {width - 1}]")
+        if head_columns == RAW_HEAD_COLUMNS and width != RAW_WIDTH:
+            warnings.warn(f"{self.path.name}: head_columns={head_columns} on a {width}-wide "
+                          f"frame: the raw captures that carry head columns are {RAW_WIDTH} "
+                          f"wide, so this file probably has none and loses {head_columns} real "
+                          "columns (drop the head only from a raw 416-wide capture)",
+                          UserWarning, stacklevel=2)
         fb = dat_frame_bytes(height, width)
         n, rest = divmod(n_bytes, fb)
         if n == 0:

@@ -229,3 +229,15 @@ def test_info_of_a_missing_file_says_no_such_file_or_dataset_folder(tmp_path, ca
     assert main(["info", str(tmp_path / "nope.h5")]) == 1
     err = capsys.readouterr().err
     assert "no such file or dataset folder" in err and len(err.strip().splitlines()) == 1
+
+
+def test_dropping_head_columns_of_a_frame_that_has_none_warns(tmp_path):
+    """The 16 head columns belong to raw 416-wide captures: asking to drop them from a
+    400-wide file warns that real columns go; a 416-wide file drops them silently."""
+    write_dat(tmp_path / "a.dat", np.zeros((3, 8, 400), np.uint8))
+    with pytest.warns(UserWarning, match="head_columns=16 on a 400-wide frame"):
+        assert read_dat(tmp_path / "a.dat", 8, 400, head_columns=16).shape == (3, 8, 384)
+    write_dat(tmp_path / "b.dat", np.zeros((3, 8, 416), np.uint8))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert read_dat(tmp_path / "b.dat", 8, 416, head_columns=16).shape == (3, 8, 400)
