@@ -241,8 +241,9 @@ def check_cli_numbers(args) -> None:
     """
     for dest, (low, high, unit) in _CLI_INTS.items():
         value = getattr(args, dest, None)
-        if is_int(value):
-            check_int("--" + dest.replace("_", "-"), value, low, high, unit)
+        if is_int(value):  # below the range, the bound is what to say (not 2**40 above)
+            check_int("--" + dest.replace("_", "-"), value, low,
+                      None if value < low else high, unit)
     for dest, (low, high, unit) in _CLI_REALS.items():
         value = getattr(args, dest, None)
         if is_real(value):

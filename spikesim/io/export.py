@@ -202,7 +202,7 @@ def export_sjdd(
     if None in cfas or len(cfas) != 1:
         raise SpikeSimFormatError(
             "SJDD-Net export needs Bayer sequences sharing one CFA pattern; found "
-            f"{sorted(map(str, cfas))}"
+            f"{sorted(c or 'mono' for c in cfas)}"
         )
     for s in ds:
         if (s.height * s.width) % 8:

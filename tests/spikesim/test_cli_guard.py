@@ -66,3 +66,17 @@ def test_an_error_during_a_progress_bar_is_a_line_of_its_own(capsys):
     assert "spikesim test: warning: careful\n" in err
     gc.collect()
     assert capsys.readouterr().err == ""
+
+
+def test_a_number_below_its_range_names_the_bound_not_the_cap(capsys):
+    """`--window 0` says 'an integer >= 1', not the 2**40 cap of readout counts."""
+    import argparse
+
+    from spikesim.cli_guard import check_cli_numbers
+    from spikesim.errors import SpikeSimValueError
+
+    with pytest.raises(SpikeSimValueError, match=r"--window=0 is invalid: expected an integer "
+                                                 r">= 1 \(readouts\)"):
+        check_cli_numbers(argparse.Namespace(window=0))
+    with pytest.raises(SpikeSimValueError, match=r"--window=.* in \[1, 1099511627776\]"):
+        check_cli_numbers(argparse.Namespace(window=2**41))
