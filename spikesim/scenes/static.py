@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from spikesim.errors import SpikeSimTypeError, bad_value
@@ -95,6 +97,10 @@ class Static(Scene):
 
     def __init__(self, image: np.ndarray):
         arr = np.asarray(image)
+        if arr.dtype == np.uint8 and arr.size and int(arr.max()) > 1:
+            warnings.warn(f"Static: image is 8-bit (0..{int(arr.max())}), taken as radiance, so "
+                          "everything above 1 saturates; for a picture pass "
+                          "spikesim.srgb.srgb_to_linear(image / 255)", UserWarning, stacklevel=2)
         self._grey: np.ndarray | None = None
         self._rgb: np.ndarray | None = None
         # private copies: the scene must not change with the caller's array

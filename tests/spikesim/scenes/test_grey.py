@@ -133,3 +133,21 @@ def test_a_kept_frame_lent_to_the_kernel_is_never_pooled_or_written():
         np.testing.assert_array_equal(chunked.packed, lent.packed)
     np.testing.assert_array_equal(kept, before)
     assert not any(np.shares_memory(kept, a) for a in sim._KEY_POOL._free)
+
+
+def test_an_8bit_picture_given_as_radiance_warns():
+    """Static takes radiance as given (255 = 255× full scale): an 8-bit picture warns
+    with the conversion to make; 0/1 masks and float images do not."""
+    import warnings
+
+    import numpy as np
+    import pytest
+
+    import spikesim as ss
+
+    with pytest.warns(UserWarning, match=r"8-bit \(0..200\).*srgb_to_linear\(image / 255\)"):
+        ss.scenes.Static(np.full((4, 4, 3), 200, np.uint8))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ss.scenes.Static(np.ones((4, 4), np.uint8))
+        ss.scenes.Static(np.full((4, 4), 200.0))
