@@ -52,8 +52,8 @@ from spikesim.scenes.photometry import check_exposure, decode_frame
 from spikesim.scenes.readers import FrameSource, SceneSource, VideoFileSource, open_frames
 from spikesim.scenes.sources import resize_linear
 
-__all__ = ["VideoScene", "video", "as_video", "AspectWarning", "aspect_change", "DEFAULT_MAX_PX",
-           "DEFAULT_FOLDER_FPS", "DEFAULT_MARGIN"]
+__all__ = ["VideoScene", "video", "as_video", "AspectWarning", "VideoEndWarning",
+           "aspect_change", "DEFAULT_MAX_PX", "DEFAULT_FOLDER_FPS", "DEFAULT_MARGIN"]
 
 #: Default largest displacement between key frames, pixels.
 DEFAULT_MAX_PX = 1.0
@@ -96,6 +96,10 @@ def _check_box(name: str, value, n: int, allowed: str) -> tuple[int, ...] | None
 
 class AspectWarning(UserWarning):
     """``resize`` changes the aspect ratio of the (cropped) frames: content is squashed."""
+
+
+class VideoEndWarning(UserWarning):
+    """More time is simulated than the video lasts: the rest holds its last frame."""
 
 
 #: Relative change of the aspect ratio above which :class:`AspectWarning` is given.
@@ -252,6 +256,7 @@ class VideoScene(Scene):
         else:
             self.height, self.width = source.height, source.width
         self.key_interval_s = 1.0 / self.fps
+        self._warned_end = False
         self._frames = _LRU(max(3, cache_pairs + 1))
         self._pairs = _LRU(max(1, cache_pairs))
         self._keys = _LRU(8)
@@ -427,6 +432,13 @@ class VideoScene(Scene):
         start_s, stop_s = check_time(start_s), check_time(stop_s)
         off = self._offset
         last = self.n_frames - 1
+        length_s = (last - off) / self.fps  # scene time of the last frame
+        if stop_s > length_s + 1.0 / self.fps and not self._warned_end:
+            self._warned_end = True
+            warnings.warn(f"the video ends at {length_s:.4g} s ({self.n_frames} frames at "
+                          f"{self.fps:g} fps) and {stop_s:.4g} s are asked for: the rest holds "
+                          "its last frame (ask for fewer readouts, or a longer clip)",
+                          VideoEndWarning, stacklevel=2)
         i0 = min(max(0, math.floor(start_s * self.fps + off)), last)
         i1 = max(i0, math.ceil(stop_s * self.fps + off))
         pos = []

@@ -203,3 +203,23 @@ def test_an_unreadable_video_gives_one_line_without_ffmpeg_noise(tmp_path):
                          timeout=120)
     assert "unreadable video" in run.stdout
     assert "moov" not in run.stderr, run.stderr
+
+
+def test_simulating_past_the_video_end_warns_once(tmp_path):
+    """A stream longer than its video holds the last frame, as documented, and says so
+    once; a stream within the video does not warn."""
+    import warnings
+
+    import spikesim as ss
+    from spikesim.scenes.video import VideoEndWarning
+
+    _write_folder(tmp_path / "f", [f"{i:05d}.png" for i in range(3)])  # 3 frames
+    scene = sc.video(tmp_path / "f", fps=1000.0)  # ends at 2 ms
+    sensor = ss.Sensor(height=32, width=40, cfa=None, clock_hz=20_000.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", VideoEndWarning)
+        ss.simulate(scene, sensor, 40, gt_readouts=[])  # 2 ms: within
+    with pytest.warns(VideoEndWarning, match=r"ends at 0.002 s \(3 frames at 1000 fps\) and "
+                                             r"0.01 s are asked for") as caught:
+        ss.simulate(scene, sensor, 200, gt_readouts=[])
+    assert sum(issubclass(w.category, VideoEndWarning) for w in caught) == 1
