@@ -6,7 +6,7 @@ import json
 import warnings
 from pathlib import Path
 
-from spikesim.errors import bad_value
+from spikesim.errors import SpikeSimValueError, bad_value
 from spikesim.workload import RunawayWorkWarning
 
 
@@ -28,6 +28,11 @@ def register(sub) -> None:
     p = sub.add_parser("simulate", help="simulate one stream to FILE.h5 or FILE.dat")
     p.add_argument("scene", help="built-in scene name (see `spikesim scenes`) or a video path")
     p.add_argument("--motion", default=None, help="motion of a picture scene (pan, zoom, ...)")
+    p.add_argument("--speed", type=float, default=None,
+                   help="largest content speed of a built-in scene, pixels per second")
+    p.add_argument("--scene-set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a built-in scene's own option, e.g. --scene-set level=0.3 or "
+                        "--scene-set exposure=2 (`spikesim scenes` lists the scenes)")
     p.add_argument("--sensor", default="ideal",
                    help="sensor preset (see `spikesim presets`) or a sensor .json file (e.g. "
                         "the sensor.json `spikesim analyze calibrate` writes)")
@@ -46,20 +51,20 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def parse_overrides(items: list[str]) -> dict:
+def parse_overrides(items: list[str], option: str = "--set") -> dict:
     """``--set FIELD=VALUE`` items as a dict: VALUE is JSON, or else a plain string; a
     VALUE that starts like a JSON object, list or string must be valid JSON."""
     out = {}
     for item in items:
         if "=" not in item:
-            raise bad_value("--set", item, "FIELD=VALUE")
+            raise bad_value(option, item, "FIELD=VALUE")
         key, value = item.split("=", 1)
         try:
             out[key] = json.loads(value)
         except json.JSONDecodeError as exc:
             if value.lstrip()[:1] in ('{', '[', '"'):
                 raise bad_value(
-                    f"--set {key}", value,
+                    f"{option} {key}", value,
                     f"valid JSON; it is not (character {exc.pos + 1}: {exc.msg}), "
                     'e.g. --set \'noise={"type":"paper","sigma_g":5}\'') from None
             out[key] = value
@@ -87,10 +92,23 @@ def run(args) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".h5", ".hdf5", ".dat"):
         raise bad_value("--out", args.out, "a path ending in .h5, .hdf5 or .dat")
+    scene_options = parse_overrides(args.scene_set, "--scene-set")
     if Path(args.scene).exists():
+        if args.speed is not None or scene_options:
+            raise bad_value("--speed/--scene-set", args.speed or args.scene_set,
+                            "none for a video (they set a built-in scene's motion and look)")
         scene = ss.scenes.video(args.scene, fps=args.fps, resize=sensor.shape)
     else:
-        scene = ss.scenes.procedural(args.scene, motion=args.motion, size=sensor.shape)
+        try:
+            scene = ss.scenes.procedural(args.scene, motion=args.motion, size=sensor.shape,
+                                         speed=args.speed, **scene_options)
+        except SpikeSimValueError as exc:  # name the command-line option
+            text = str(exc)
+            for api, flag in (("options=", "--scene-set "), ("speed=", "--speed="),
+                              ("motion=", "--motion="), ("name=", "SCENE=")):
+                if text.startswith(api):
+                    raise SpikeSimValueError(flag + text[len(api):]) from None
+            raise
     packed_bytes = args.readouts * sensor.height * ((sensor.width + 7) // 8)
     if not args.force:
         check_free_space(out, packed_bytes * (2 if args.clean_twin else 1))

@@ -118,3 +118,21 @@ def test_simulate_takes_a_sensor_json_and_says_what_it_simulated(tmp_path, capsy
     assert main(["simulate", "astronaut", "--readouts", "30", "--sensor", "nope.json",
                  "--out", str(tmp_path / "t.h5")]) == 1
     assert "no such sensor JSON file: 'nope.json'" in capsys.readouterr().err
+
+
+def test_simulate_passes_scene_options_and_names_the_flags(tmp_path, capsys):
+    """--speed and --scene-set KEY=VALUE reach the built-in scene; a key or value the
+    scene refuses is named by its flag."""
+    out = tmp_path / "f.h5"
+    assert main(["simulate", "flat", "--scene-set", "level=0.5", "--size", "8x8", "--set",
+                 "cfa=mono", "--readouts", "100", "--out", str(out)]) == 0
+    rate = ss.io.open_h5(out).read_window(0, 100).mean()
+    assert rate == pytest.approx(0.5 * 0.6, abs=0.011)  # full_scale_rate 0.6
+    capsys.readouterr()
+    for argv, needle in ((["flat", "--scene-set", "levle=1"], "--scene-set ['levle']"),
+                         (["flat", "--speed", "50"], "--speed=50.0"),
+                         (["astronaut", "--motion", "wobble"], "--motion='wobble'")):
+        assert main(["simulate", *argv, "--size", "8x8", "--readouts", "10", "--out",
+                     str(tmp_path / "g.h5")]) == 1
+        assert needle in capsys.readouterr().err
+    assert not (tmp_path / "g.h5").exists()
