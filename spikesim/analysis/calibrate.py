@@ -2,7 +2,7 @@
 
 :func:`calibrate` runs three steps, each in its own module:
 
-1. **regions** — the user's dark/flat masks (:func:`spikesim.analysis.regions.check_regions`)
+1. **regions** — the user's dark/flat masks (:func:`spikesim.analysis.masks.check_regions`)
    or, without masks, automatic detection on the rate map
    (:func:`spikesim.analysis.regions.detect_regions`); a capture with no flat
    region is refused (the gain cannot be measured without one), a capture
@@ -43,7 +43,8 @@ from spikesim.analysis.calibration_config import (
     config_with,
 )
 from spikesim.analysis.capture import as_capture, pixel_counts, pixel_intervals
-from spikesim.analysis.regions import check_regions, detect_regions, flat_names, motion_score
+from spikesim.analysis.masks import check_regions, flat_names
+from spikesim.analysis.regions import describe_region, find_regions, motion_score
 from spikesim.analysis.report import AnalysisResult
 from spikesim.errors import bad_value
 
@@ -66,7 +67,8 @@ class CalibrationResult(AnalysisResult):
 
 def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
     """(dark, flats, detected) from the masks or by detection.  Given flat masks
-    that fail the motion test of :mod:`spikesim.analysis.regions` get a note."""
+    that fail the motion test of :mod:`spikesim.analysis.regions` get a note,
+    and so does each detected candidate region that is left out."""
     shape = (cap.height, cap.width)
     dark, flats = check_regions(dark_mask, flat_masks, shape)
     if (dark is None and not flats) and not cfg.detect:
@@ -74,15 +76,15 @@ def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
     first = pixel_counts(cap, 0, n // 2, progress=progress) / (n // 2)
     second = (rate * n - first * (n // 2)) / (n - n // 2)
     if dark is not None and not flats and cfg.detect:  # the dark region given, flats found
-        _, found = detect_regions(rate, n, min_pixels=cfg.min_pixels,
-                                  halves=np.stack([first, second]))
-        flats = [f & ~dark for f in found if (f & ~dark).sum() >= cfg.min_pixels]
+        found = _detect(rate, n, cfg, first, second, notes)
+        flats = [f & ~dark for f in found.flats if (f & ~dark).sum() >= cfg.min_pixels]
         flats = _bright_enough(flats, rate, n, notes)
         if not flats:
             raise bad_value("flat_masks", None,
                             "flat masks: none was given and no flat region was found outside "
                             f"dark_mask (a uniform, static region of >= {cfg.min_pixels} pixels "
-                            f"and >= {MIN_FLAT_SPIKES} spikes per pixel below saturation)")
+                            f"and >= {MIN_FLAT_SPIKES} spikes per pixel below saturation"
+                            f"{_left_out(found)})")
         return dark, flats, "flat regions"
     if dark is not None or flats:
         change = (second - first) * (n / 2)
@@ -94,15 +96,48 @@ def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
                              f"(r = {r:.3g} > {limit:.3g}); its intervals inflate the fitted "
                              "temporal noise")
         return dark, flats, False
-    dark, flats = detect_regions(rate, n, min_pixels=cfg.min_pixels,
-                                 halves=np.stack([first, second]))
-    flats = _bright_enough(flats, rate, n, notes)
+    found = _detect(rate, n, cfg, first, second, notes)
+    flats = _bright_enough(found.flats, rate, n, notes)
     if not flats:
         raise bad_value("capture", "no flat region found",
                         f"a capture with a uniform, static region of >= {cfg.min_pixels} pixels "
                         f"and >= {MIN_FLAT_SPIKES} spikes per pixel below saturation (the gain "
-                        "cannot be fitted without one; a longer capture helps), or flat_masks")
-    return dark, flats, True
+                        "cannot be fitted without one; a longer capture helps), or flat_masks"
+                        f"{_left_out(found)}")
+    return found.dark, flats, True
+
+
+#: Most left-out candidate regions the notes name one by one (the largest first).
+MAX_DROPPED_NOTES = 10
+
+
+def _detect(rate, n, cfg, first, second, notes):
+    """:func:`spikesim.analysis.regions.find_regions` on the capture; a note per
+    candidate region left out (up to :data:`MAX_DROPPED_NOTES`, then one for the rest)."""
+    found = find_regions(rate, n, min_pixels=cfg.min_pixels, halves=np.stack([first, second]))
+    dropped = sorted(found.dropped, key=lambda d: -d.pixels)
+    notes.extend(d.describe() for d in dropped[:MAX_DROPPED_NOTES])
+    rest = dropped[MAX_DROPPED_NOTES:]
+    if rest:
+        notes.append(f"{len(rest)} smaller detected candidate regions "
+                     f"({sum(d.pixels for d in rest)} pixels) were left out too: "
+                     f"{_reason_counts(rest)}")
+    return found
+
+
+def _reason_counts(dropped) -> str:
+    """``2 not static, 1 not uniform``: how many of ``dropped`` were left out for each reason."""
+    kinds: dict[str, int] = {}
+    for d in dropped:
+        key = d.reason.split(" (")[0]
+        kinds[key] = kinds.get(key, 0) + 1
+    return ", ".join(f"{v} {k}" for v, k in sorted(((v, k) for k, v in kinds.items()),
+                                                    reverse=True))
+
+
+def _left_out(found) -> str:
+    """For the no-flat-region errors: what detection left out, or nothing."""
+    return f"; left out: {_reason_counts(found.dropped)}" if found.dropped else ""
 
 
 def _bright_enough(flats, rate, n, notes):
@@ -114,18 +149,20 @@ def _bright_enough(flats, rate, n, notes):
         if spikes >= MIN_FLAT_SPIKES:
             kept.append(f)
         else:
-            notes.append(f"a detected flat region of {int(f.sum())} pixels was left out: "
-                         f"{spikes:.3g} spikes per pixel, fewer than the fit's "
+            notes.append(f"a detected flat region {describe_region(f, rate)} was left out: "
+                         f"too dim, {spikes:.3g} spikes per pixel, fewer than the fit's "
                          f"{MIN_FLAT_SPIKES} (a longer capture would keep it)")
     return kept
 
 
-def _levels(flat_levels, flats):
+def _levels(flat_levels, flats, name: str = "flat_levels"):
+    """The radiances (scene units, 1 = full scale) of the flat regions, one per
+    region, or None; errors call the parameter ``name``."""
     if flat_levels is None:
         return None
     lv = np.asarray(flat_levels, dtype=np.float64).ravel()
     if lv.size != len(flats) or np.any(~np.isfinite(lv)) or np.any(lv <= 0):
-        raise bad_value("flat_levels", lv.tolist(),
+        raise bad_value(name, lv.tolist(),
                         f"{len(flats)} finite radiances > 0, one per flat region")
     return lv
 
@@ -134,20 +171,20 @@ def _levels(flat_levels, flats):
 CALIBRATED_RESETS = ("modulo", "subtract")
 
 
-def _reset_mode(cap, reset, notes) -> str:
+def _reset_mode(cap, reset, notes, given: str = "reset") -> str:
     """The capture's reset mode: the one its metadata records (a spikesim
     simulation; a ``reset`` given that differs is an error), else ``reset``,
     else modulo (stated in the notes).  Zero reset is refused: it discards each
     cycle's residual charge, so its rate is not linear in the charge and its
-    intervals follow another law."""
+    intervals follow another law.  Errors call the parameter ``given``."""
     sensor = cap.meta.get("sensor")
     recorded = sensor.get("reset") if isinstance(sensor, dict) else None
-    name = "reset"
+    name = given
     if reset is None:
         reset, name = recorded, "the capture's reset mode (its metadata)"
     elif recorded is not None and reset != recorded:
-        raise bad_value("reset", reset, f"the capture's own reset mode {recorded!r}, which its "
-                        "metadata records (or leave reset out)")
+        raise bad_value(given, reset, f"the capture's own reset mode {recorded!r}, which its "
+                        f"metadata records (or leave {given} out)")
     if reset is None:
         notes.append("reset mode unknown: modulo assumed (modulo and subtract reset fire "
                      "alike below one threshold per readout); pass reset= (--reset) if it "
@@ -179,7 +216,8 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
               config: CalibrationConfig | None = None, cfa: str | None = None,
               clock_hz: float | None = None, height: int | None = None,
               width: int | None = None, flip: bool = True, reset: str | None = None,
-              progress: bool = False, **options) -> CalibrationResult:
+              progress: bool = False, option_names: dict | None = None,
+              **options) -> CalibrationResult:
     """Fit a :class:`spikesim.Sensor` with :class:`~spikesim.noise.PhysicalNoise` to a capture.
 
     Parameters
@@ -207,6 +245,10 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
         ``detect``, ``electrons_per_threshold``, ``temporal_threshold_noise``,
         ``mismatch_split``, ``fit_charge_noise``, ``max_readouts``, ``check``,
         ``check_readouts``, ``check_seed``, ``min_pixels``) replace its fields.
+    option_names : dict, optional
+        How errors name ``flat_levels`` and ``reset`` (the CLI passes its flags,
+        ``{"flat_levels": "--levels", "reset": "--reset"}``); default: the
+        keyword names.
     """
     cfg = config_with(config, options)
     cap = as_capture(capture, height=height, width=width, flip=flip, cfa=cfa, clock_hz=clock_hz)
@@ -214,15 +256,17 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
     if n < MIN_READOUTS:
         raise bad_value("capture length", f"{n} readouts",
                         f"at least {MIN_READOUTS} readouts for calibration")
+    names = {"flat_levels": "flat_levels", "reset": "reset", **(option_names or {})}
     region_notes: list[str] = []
-    reset = _reset_mode(cap, reset, region_notes)
+    reset = _reset_mode(cap, reset, region_notes, names["reset"])
     rate = pixel_counts(cap, 0, n, progress=progress) / n
     dark, flats, detected = _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress,
                                      region_notes)
-    levels = _levels(flat_levels, flats)
+    levels = _levels(flat_levels, flats, names["flat_levels"])
     mom = pixel_intervals(cap, 0, n, progress=progress)
-    names = flat_names(flat_masks if detected is False else None, len(flats))
-    params, diag, lv, hot = fit_parameters(rate, mom, n, dark, flats, levels, cfg, names)
+    params, diag, lv, hot = fit_parameters(
+        rate, mom, n, dark, flats, levels, cfg,
+        flat_names(flat_masks if detected is False else None, len(flats)))
     notes = region_notes + list(diag.pop("notes"))
     sensor = _sensor(cap, params, notes, reset)
     fit = None

@@ -263,7 +263,7 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=Non
         Radiance of each flat region (1 = full scale), or None (unknown).
     config : :class:`spikesim.analysis.calibration_config.CalibrationConfig`
     names : list of str or None
-        What errors call each flat region (:func:`spikesim.analysis.regions.flat_names`;
+        What errors call each flat region (:func:`spikesim.analysis.masks.flat_names`;
         None: ``flat region i``).
 
     Returns ``(params, diagnostics, used_levels, hot_mask)``; ``params`` are

@@ -1,10 +1,8 @@
-"""Dark and flat regions of a capture: validation of user masks and automatic detection.
+"""Dark and flat regions of a capture, detected automatically.
 
-A *region* is a boolean (H, W) mask.  Users pass a dark mask and flat masks
-(a list of boolean masks, or one integer label image with 0 = no region and
-k = flat region k); :func:`check_regions` validates shapes, emptiness and
-overlap.  :func:`detect_regions` finds them from the per-pixel firing-rate
-map when no mask is given:
+A *region* is a boolean (H, W) mask (the user's own masks are validated by
+:mod:`spikesim.analysis.masks`).  :func:`detect_regions` finds them from the
+per-pixel firing-rate map when no mask is given:
 
 1. the rate map is median filtered (5 × 5), which removes the fixed pattern
    and hot pixels but keeps region edges;
@@ -20,103 +18,79 @@ map when no mask is given:
    than ``tol·value + 3/T`` (three counts over the capture);
 4. each cluster is split into connected components, eroded (dark: two
    pixels, the filter radius, as edges mix two levels; flat: one pixel, the
-   range test has already removed the edges) and kept when it holds at
-   least ``min_pixels`` pixels and, unless dark, the inter-quartile range of
-   its filtered values is at most ``tol·median + 1/T`` (a ramp forms one wide
-   cluster and is rejected) and, when ``halves`` are given, its pixels'
-   count changes between the halves ``d_i`` are uncorrelated between
+   range test has already removed the edges); a component of at least
+   ``min_pixels`` pixels is a *candidate*, dark when its median rate is at
+   most ``dark_rate`` spikes per readout;
+5. a candidate is kept when, unless dark, the inter-quartile range of its
+   filtered values is at most ``tol·median + 1/T`` (a ramp forms one wide
+   cluster and is rejected) and, dark or not, when ``halves`` are given, its
+   pixels' count changes between the halves ``d_i`` are uncorrelated between
    neighbours: in a static region they are independent temporal noise, in
-   moving content neighbours change together.  The component is rejected
-   when ``r = Σ d_i·d_j / sqrt(Σ d_i²·Σ d_j²)`` over horizontally and
-   vertically adjacent pairs exceeds ``4/sqrt(pairs)`` (four standard errors
-   of a correlation of independent pairs);
-5. components whose median rate is at most ``dark_rate`` spikes per readout
-   form the dark mask; the others are flat regions, ordered by rate; regions
-   within 2 % of one spike per readout are saturated and dropped.
+   moving content neighbours change together (moving content is neither dark
+   nor flat).  The candidate is rejected when
+   ``r = Σ d_i·d_j / sqrt(Σ d_i²·Σ d_j²)`` over horizontally and vertically
+   adjacent pairs exceeds ``4/sqrt(pairs)`` (four standard errors of a
+   correlation of independent pairs); flat candidates within 2 % of one
+   spike per readout are saturated and rejected;
+6. a rejected candidate may hold a static region that touches moving or
+   textured content of similar rates (the clustering joins them): its
+   *static pieces* (without the pixels whose change ``d_i`` is an outlier,
+   :func:`_static_pieces`) and, for flat candidates, their *uniform parts*
+   (the pixels of one peak of its rate histogram, :func:`_uniform_parts`;
+   a ramp has no peak) of at least ``min_pixels`` pixels are tested again
+   and kept when they pass;
+7. the dark candidates kept form the dark mask, except those whose mean
+   rate exceeds the darkest one's by more than ``5·tol`` of it (half at the
+   default ``tol``) and four standard errors: dim light, not dark current
+   (the dark current is one level across the chip), tested as flat
+   candidates instead; the flat regions are ordered by rate.
+
+:func:`find_regions` also returns the candidates left out and why
+(:class:`DroppedRegion`), for the notes of the calibration report.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
-from spikesim.errors import SpikeSimTypeError, bad_value
-
-__all__ = ["check_regions", "detect_regions", "as_mask", "motion_score"]
-
-
-#: What the flat masks may be, for the errors that name it.
-FLAT_FORMS = "an (H, W) integer label image (0 = none) or boolean (H, W) or (K, H, W) masks"
+__all__ = ["detect_regions", "find_regions", "Detection", "DroppedRegion",
+           "describe_region", "motion_score"]
 
 
-def as_mask(mask, shape: tuple[int, int], name: str,
-            forms: str = "a boolean (H, W) mask") -> np.ndarray:
-    """Validate one (H, W) mask (bool, or integers 0/1) and return it as bool;
-    ``forms`` says what was expected in the errors."""
-    arr = np.asarray(mask)
-    if arr.dtype != np.bool_ and arr.dtype.kind not in "iu":
-        raise SpikeSimTypeError(f"{name} must be {forms}, got dtype {arr.dtype}")
-    if arr.shape != tuple(shape):
-        raise bad_value(f"{name}.shape", arr.shape, f"the capture's (H, W) = {tuple(shape)}")
-    if arr.dtype != np.bool_ and arr.size and (arr.min() < 0 or arr.max() > 1):
-        raise bad_value(name, f"integers from {arr.min()} to {arr.max()}",
-                        f"{forms}, with integers 0 and 1 at most")
-    return arr.astype(bool)
+@dataclass(frozen=True)
+class DroppedRegion:
+    """A candidate region :func:`find_regions` left out: ``kind`` (``"dark"``
+    or ``"flat"``), ``where`` (:func:`describe_region`), ``pixels`` and
+    ``reason`` (a phrase saying why)."""
+
+    kind: str
+    where: str
+    pixels: int
+    reason: str
+
+    def describe(self) -> str:
+        """The note the calibration report gives for it."""
+        return f"a detected {self.kind} candidate region {self.where} was left out: {self.reason}"
 
 
-def _is_label_image(arr) -> bool:
-    return arr is not None and arr.ndim == 2 and arr.dtype.kind in "iu"
+def describe_region(mask: np.ndarray, rate: np.ndarray) -> str:
+    """``of N pixels (rows a-b, columns c-d; median rate r spikes per readout)``:
+    what notes call the region ``mask`` of the (H, W) ``rate`` map."""
+    rows, cols = np.nonzero(mask)
+    return (f"of {rows.size} pixels (rows {rows.min()}-{rows.max()}, columns {cols.min()}-"
+            f"{cols.max()}; median rate {float(np.median(rate[mask])):.4g} spikes per readout)")
 
 
-def flat_names(flat_masks, count: int) -> list[str]:
-    """The names errors and notes give the ``count`` flat regions: ``flat_masks
-    label k`` for an integer label image (labels in increasing order, the
-    order of ``flat_levels``), ``flat_masks[i]`` for masks, ``detected flat
-    region i`` where ``flat_masks`` is None (the regions were detected)."""
-    if flat_masks is None:
-        return [f"detected flat region {i}" for i in range(count)]
-    arr = np.asarray(flat_masks) if not isinstance(flat_masks, (list, tuple)) else None
-    if _is_label_image(arr):
-        return [f"flat_masks label {k}" for k in sorted(set(np.unique(arr).tolist()) - {0})]
-    if arr is not None and arr.ndim == 2:
-        return ["flat_masks"]
-    return [f"flat_masks[{i}]" for i in range(count)]
+@dataclass(frozen=True)
+class Detection:
+    """What :func:`find_regions` found: the dark mask (or None), the flat masks
+    ordered by rate and the candidates it left out (:class:`DroppedRegion`)."""
 
-
-def check_regions(dark_mask, flat_masks, shape) -> tuple[np.ndarray | None, list[np.ndarray]]:
-    """Validate the user's masks: right shape, non-empty, no overlap."""
-    dark = None if dark_mask is None else as_mask(dark_mask, shape, "dark_mask")
-    if dark is not None and not dark.any():
-        raise bad_value("dark_mask", "an all-False mask", "a mask selecting at least one pixel")
-    flats: list[np.ndarray] = []
-    if flat_masks is not None:
-        arr = np.asarray(flat_masks) if not isinstance(flat_masks, (list, tuple)) else None
-        if _is_label_image(arr):
-            if arr.shape != tuple(shape):
-                raise bad_value("flat_masks.shape", arr.shape,
-                                f"the capture's (H, W) = {tuple(shape)}")
-            labels = arr
-            flats = [labels == k for k in sorted(set(np.unique(labels).tolist()) - {0})]
-            if not flats:
-                raise bad_value("flat_masks", "a label image without labels > 0",
-                                "labels 1..K marking the flat regions (0 = none)")
-        elif arr is not None and arr.ndim == 2:  # one boolean mask
-            flats = [as_mask(arr, shape, "flat_masks", FLAT_FORMS)]
-        else:
-            seq = list(flat_masks) if arr is None else list(arr)
-            flats = [as_mask(m, shape, f"flat_masks[{i}]", FLAT_FORMS) for i, m in enumerate(seq)]
-        if not flats:
-            raise bad_value("flat_masks", "an empty list", "one or more masks, or None")
-        for i, m in enumerate(flats):
-            if not m.any():
-                raise bad_value(f"flat_masks[{i}]", "an empty region",
-                                "a mask selecting at least one pixel")
-    masks = ([dark] if dark is not None else []) + flats
-    if masks:
-        overlap = np.sum(masks, axis=0) > 1
-        if overlap.any():
-            raise bad_value("masks", f"{int(overlap.sum())} pixels in two regions",
-                            "disjoint dark and flat regions")
-    return dark, flats
+    dark: np.ndarray | None
+    flats: list
+    dropped: list = field(default_factory=list)
 
 
 def detect_regions(rate: np.ndarray, n_readouts: int, min_pixels: int = 64, tol: float = 0.1,
@@ -125,25 +99,188 @@ def detect_regions(rate: np.ndarray, n_readouts: int, min_pixels: int = 64, tol:
     """Find dark and flat regions in an (H, W) rate map (spikes per readout); see module notes.
 
     ``halves``: optional (2, H, W) rates (spikes per readout) over the first and
-    the second half of the capture, for the steadiness test.
+    the second half of the capture, for the steadiness and motion tests.
+    Returns ``(dark, flats)``; :func:`find_regions` also says what was left out.
     """
+    found = find_regions(rate, n_readouts, min_pixels, tol, dark_rate, halves)
+    return found.dark, found.flats
+
+
+def find_regions(rate: np.ndarray, n_readouts: int, min_pixels: int = 64, tol: float = 0.1,
+                 dark_rate: float = 0.02, halves: np.ndarray | None = None) -> Detection:
+    """:func:`detect_regions` with the candidates left out (a :class:`Detection`)."""
     from scipy import ndimage
 
     rate = np.asarray(rate, dtype=np.float64)
     t = float(n_readouts)
     sm = ndimage.median_filter(rate, size=5, mode="nearest")
+    change = None if halves is None else (np.asarray(halves[1], np.float64) -
+                                          np.asarray(halves[0], np.float64)) * (t / 2)
+    kept = _candidate_pixels(sm, t, tol, dark_rate, halves)
+    if not kept.any():
+        return Detection(None, [])
+    dark_parts, flat_parts, dropped = [], [], []
+    for comp, is_dark in _components(sm, kept, t, tol, dark_rate, min_pixels):
+        parts = _parts(comp, sm, t, tol, min_pixels, change, is_dark, dropped)
+        (dark_parts if is_dark else flat_parts).extend(parts)
+    dark_parts, dim = _darkest_level(dark_parts, rate, tol)
+    for comp in dim:  # brighter than the dark level: dim light, tested as flat
+        flat_parts += _parts(comp, sm, t, tol, min_pixels, change, False, dropped)
+    flat_parts.sort(key=lambda m: float(np.median(sm[m])))
+    dark = np.logical_or.reduce(dark_parts) if dark_parts else None
+    return Detection(dark, flat_parts, dropped)
+
+
+def _parts(comp, sm, t, tol, min_pixels, change, is_dark, dropped) -> list:
+    """The regions a candidate gives: itself when it passes the tests (module
+    notes, steps 4-5), else the parts of it that do: its static pieces
+    (:func:`_static_pieces`) and, for a flat candidate, their uniform parts
+    (:func:`_uniform_parts`).  What is left out is added to ``dropped``."""
+    why = _rejection(comp, sm, t, tol, is_dark, change)
+    if why is None:
+        return [comp]
+    parts = []
+    for piece in _static_pieces(comp, change, min_pixels):
+        if _rejection(piece, sm, t, tol, is_dark, change) is None:
+            parts.append(piece)
+        elif not is_dark:
+            parts += [p for p in _uniform_parts(piece, sm, t, tol, min_pixels)
+                      if _rejection(p, sm, t, tol, False, change) is None]
+    kind = "dark" if is_dark else "flat"
+    if parts:
+        many = len(parts) > 1
+        why += (f"; {len(parts)} uniform, static part{'s' if many else ''} of it "
+                f"({int(np.sum([p.sum() for p in parts]))} pixels) kept as "
+                f"{f'{kind} regions' if many else f'a {kind} region'}")
+    dropped.append(_dropped(comp, sm, kind, why))
+    return parts
+
+
+def _static_pieces(comp, change, min_pixels):
+    """Yield the connected pieces (at least ``min_pixels`` pixels) of ``comp``
+    without the pixels whose count change between the halves (spikes) is an
+    outlier: more than 4 robust standard deviations (at least one spike) from
+    the median change; pixels enclosed by a piece stay in it (hot pixels).
+    Moving content next to a static region changes by many spikes, the static
+    region by its counting noise."""
+    from scipy import ndimage
+
+    if change is None:
+        yield comp
+        return
+    d = change[comp]
+    med = float(np.median(d))
+    sd = max(1.4826 * float(np.median(np.abs(d - med))), 1.0)
+    lab, n = ndimage.label(comp & (np.abs(change - med) <= 4 * sd))
+    for k in range(1, n + 1):
+        piece = ndimage.binary_fill_holes(lab == k) & comp  # keep enclosed hot pixels
+        if piece.sum() >= min_pixels:
+            yield piece
+
+
+def _uniform_parts(comp, sm, t, tol, min_pixels):
+    """Yield the candidate's pieces of one rate level: for each peak of its rate
+    histogram (:func:`_peak_ranges`), its connected pixels in the peak's rate
+    range, of at least ``min_pixels`` pixels and not tilted (:func:`_tilted`).
+    A static band that touches moving or textured content of similar rates
+    forms one candidate with it; this finds the band again (a ramp has no peak)."""
+    from scipy import ndimage
+
+    rows, cols = np.nonzero(comp)
+    box = (slice(rows.min(), rows.max() + 1), slice(cols.min(), cols.max() + 1))
+    inside, values = comp[box], sm[box]
+    for lo, hi in _peak_ranges(values[inside], t, tol, min_pixels):
+        lab, n = ndimage.label(inside & (values >= lo) & (values <= hi))
+        for k in range(1, n + 1):
+            if np.count_nonzero(lab == k) >= min_pixels:
+                piece = np.zeros(comp.shape, bool)
+                piece[box] = lab == k
+                if not _tilted(piece, sm, t, tol):
+                    yield piece
+
+
+def _peak_ranges(values, t, tol, min_pixels) -> list[tuple[float, float]]:
+    """The rate ranges (spikes per readout) of the peaks of ``values``.
+
+    The density at rate ``u`` is the number of values within ``w`` of it,
+    ``w = max((tol·u + 1/T)/4, 1/T)`` (a quarter of the flatness tolerance,
+    at least one count over the capture: rates are multiples of ``1/T``); from
+    the densest rate down, a peak of at least ``min_pixels`` extends on both
+    sides while the density stays at least half its own (a rate range
+    overlapping an earlier peak's is no peak).  A ramp's density is flat: one
+    range covering it all."""
+    v = np.sort(np.asarray(values, np.float64))
+    u = np.unique(v)
+    w = np.maximum((tol * u + 1.0 / t) / 4, 1.0 / t)
+    dens = _count(v, u - w, u + w)
+    taken = np.zeros(u.size, bool)
+    ranges = []
+    for i in np.argsort(-dens, kind="stable"):
+        if dens[i] < min_pixels:
+            break
+        lo, hi = i, i
+        while lo > 0 and 2 * dens[lo - 1] >= dens[i]:
+            lo -= 1
+        while hi < u.size - 1 and 2 * dens[hi + 1] >= dens[i]:
+            hi += 1
+        if not taken[lo: hi + 1].any():
+            taken[lo: hi + 1] = True
+            ranges.append((float(u[lo] - w[lo]), float(u[hi] + w[hi])))
+    return ranges
+
+
+def _count(v, lo, hi):
+    """How many of the sorted ``v`` lie in each ``[lo, hi]``."""
+    return np.searchsorted(v, hi, side="right") - np.searchsorted(v, lo, side="left")
+
+
+def _tilted(piece, sm, t, tol) -> bool:
+    """Whether the least-squares plane through the filtered rates of ``piece``
+    varies over it by more than half the flatness tolerance (a slice of a ramp,
+    not a uniform part)."""
+    rows, cols = np.nonzero(piece)
+    x = np.stack([np.ones(rows.size), rows, cols], axis=1).astype(np.float64)
+    coef, *_ = np.linalg.lstsq(x, sm[piece], rcond=None)
+    fit = x @ coef
+    return float(fit.max() - fit.min()) > (tol * float(np.median(sm[piece])) + 1.0 / t) / 2
+
+
+def _darkest_level(parts, rate, tol):
+    """Split the dark candidates into ``(dark, dim)`` (module notes, step 7):
+    dark are those whose mean rate (spikes per readout) exceeds the darkest
+    candidate's by at most ``5·tol`` of it plus four standard errors of the
+    difference; a brighter one is dim light (a flat candidate)."""
+    if len(parts) < 2:
+        return parts, []
+    stats = [(float(rate[p].mean()), float(rate[p].var()) / max(int(p.sum()) - 1, 1))
+             for p in parts]
+    b0, v0 = min(stats)
+    dark, dim = [], []
+    for p, (b, v) in zip(parts, stats, strict=True):
+        (dark if b - b0 <= 5 * tol * b0 + 4 * np.sqrt(v + v0) else dim).append(p)
+    return dark, dim
+
+
+def _candidate_pixels(sm, t, tol, dark_rate, halves) -> np.ndarray:
+    """(H, W) bool: the locally flat and steady pixels (module notes, step 2)."""
+    from scipy import ndimage
+
     spread = ndimage.maximum_filter(sm, size=5, mode="nearest") - \
         ndimage.minimum_filter(sm, size=5, mode="nearest")
     kept = (spread <= 2 * tol * sm + 2.0 / t) | (sm <= dark_rate)
     if halves is not None:
         h1, h2 = (ndimage.median_filter(np.asarray(x, np.float64), size=5, mode="nearest")
                   for x in halves)
-        change = ndimage.maximum_filter(np.abs(h1 - h2), size=5, mode="nearest")
-        kept &= change <= tol * sm + 2.0 / (t / 2)
-    dark = np.zeros(rate.shape, bool)
-    flats = []
-    if not kept.any():
-        return None, []
+        steady = ndimage.maximum_filter(np.abs(h1 - h2), size=5, mode="nearest")
+        kept &= steady <= tol * sm + 2.0 / (t / 2)
+    return kept
+
+
+def _components(sm, kept, t, tol, dark_rate, min_pixels):
+    """Yield ``(mask, is_dark)`` per eroded connected component of each rate
+    cluster with at least ``min_pixels`` pixels (module notes, steps 3-4)."""
+    from scipy import ndimage
+
     v = np.sort(sm[kept])
     gap = tol * v[1:] + 3.0 / t
     cuts = np.flatnonzero(np.diff(v) > gap)
@@ -155,27 +292,31 @@ def detect_regions(rate: np.ndarray, n_readouts: int, min_pixels: int = 64, tol:
             region = lab == k
             is_dark = float(np.median(sm[region])) <= dark_rate
             comp = ndimage.binary_erosion(region, iterations=2 if is_dark else 1)
-            if comp.sum() < min_pixels:
-                continue
-            vals = sm[comp]
-            med = float(np.median(vals))
-            q1, q3 = np.percentile(vals, [25, 75])
-            if med <= dark_rate:  # dark current varies a lot between pixels: no flatness test
-                dark |= comp
-            elif q3 - q1 > tol * med + 1.0 / t:
-                continue
-            elif halves is not None and _moving(comp, (halves[1] - halves[0]) * (t / 2)):
-                continue
-            elif med < 0.98:
-                flats.append((med, comp))
-    flats.sort(key=lambda item: item[0])
-    return (dark if dark.any() else None), [m for _, m in flats]
+            if comp.sum() >= min_pixels:
+                yield comp, bool(float(np.median(sm[comp])) <= dark_rate)
 
 
-def _moving(comp: np.ndarray, change: np.ndarray) -> bool:
-    """Neighbour correlation test of the count changes ``change`` over ``comp`` (notes)."""
-    r, limit = motion_score(comp, change)
-    return r > limit
+def _rejection(comp, sm, t, tol, is_dark, change) -> str | None:
+    """Why the candidate ``comp`` is not a region (module notes, steps 4-5), or None."""
+    vals = sm[comp]
+    med = float(np.median(vals))
+    q1, q3 = np.percentile(vals, [25, 75])
+    if not is_dark and q3 - q1 > tol * med + 1.0 / t:
+        return (f"not uniform (inter-quartile range of its rates {q3 - q1:.3g} > "
+                f"{tol * med + 1.0 / t:.3g} spikes per readout: a ramp or texture)")
+    if change is not None:
+        r, limit = motion_score(comp, change)
+        if r > limit:
+            return ("not static (its pixels' count changes between the capture's halves are "
+                    f"correlated between neighbours, r = {r:.3g} > {limit:.3g}: moving "
+                    f"content{' is not dark' if is_dark else ''})")
+    if not is_dark and med >= 0.98:
+        return "saturated (within 2 % of one spike per readout: no gain information)"
+    return None
+
+
+def _dropped(comp, sm, kind, reason) -> DroppedRegion:
+    return DroppedRegion(kind, describe_region(comp, sm), int(comp.sum()), reason)
 
 
 def motion_score(comp: np.ndarray, change: np.ndarray) -> tuple[float, float]:

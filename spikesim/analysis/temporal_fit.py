@@ -23,7 +23,10 @@ are not exactly stationary).  σ_q² is kept only when the data supports it:
 a ratio of at least ``MIN_SPAN`` between the 90th and the 10th percentile of
 the pixels' mean intervals, and the free estimate at least ``MIN_Z``
 standard errors above 0; otherwise the one-term fit (σ_q² = 0) is used and
-the reason is returned.
+the reason is returned.  A free estimate at least ``MIN_Z`` standard errors
+*below* 0 is reported as a misfit, not as "not significant": the model's CV²
+cannot fall with the interval length, so the intervals of the regions are not
+those of static pixels under steady light (moving content, flicker).
 """
 
 from __future__ import annotations
@@ -150,6 +153,18 @@ def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0
         return TemporalFit(k2, c, c, se, True,
                            f"CV² grows with the interval: σ_q² = {c:.3g} ± {se:.2g} "
                            "thresholds² per readout", **common)
-    return TemporalFit(k1, 0.0, c_free, se, False,
-                       f"CV² slope not significant (σ_q² = {c_free:.3g} ± {se:.2g}, needs "
-                       f"{MIN_Z:g} standard errors): charge noise kept at 0", **common)
+    return TemporalFit(k1, 0.0, c_free, se, False, _no_slope_reason(c_free, se), **common)
+
+
+def _no_slope_reason(c_free: float, se: float) -> str:
+    """Why σ_q² is kept at 0: a free estimate ``c_free`` (thresholds² per
+    readout, standard error ``se``) at least :data:`MIN_Z` standard errors
+    below 0 is a misfit (the model's CV² cannot fall with the interval),
+    otherwise the slope is not significant."""
+    if c_free < 0 and -c_free >= MIN_Z * se:
+        return (f"CV² falls with the interval length (σ_q² = {c_free:.3g} ± {se:.2g}, "
+                f"{-c_free / se:.3g} standard errors below 0): a model misfit, the model's CV² "
+                "can only grow with the interval (moving content or non-stationary light in "
+                "the regions?); charge noise kept at 0")
+    return (f"CV² slope not significant (σ_q² = {c_free:.3g} ± {se:.2g}, needs "
+            f"{MIN_Z:g} standard errors): charge noise kept at 0")

@@ -242,7 +242,8 @@ def _run_calibrate(args) -> int:
         mismatch_split=DEFAULT_MISMATCH_SPLIT if args.mismatch_split is None
         else args.mismatch_split,
         fit_charge_noise=args.charge_noise, max_readouts=args.max_readouts, check=args.check,
-        check_seed=args.seed, reset=args.reset, progress=args.progress)
+        check_seed=args.seed, reset=args.reset, progress=args.progress,
+        option_names={"flat_levels": "--levels", "reset": "--reset"})
     paths = write_report(res, args.out)
     sensor_path = Path(args.out) / "sensor.json"
     sensor_path.write_text(res.sensor.to_json() + "\n")
