@@ -32,18 +32,9 @@ def _size(text: str, name: str = "--size") -> tuple[int, int]:
 
 
 def _sensor(args):
-    import spikesim as ss
-    from spikesim.commands.simulate import parse_overrides
+    from spikesim.commands.simulate import load_sensor, parse_overrides
 
-    overrides = parse_overrides(args.set)
-    if "cfa" in overrides and overrides["cfa"] in ("mono", "none"):
-        overrides["cfa"] = None
-    path = Path(args.sensor)
-    if path.suffix.lower() == ".json":
-        if not path.is_file():
-            raise SpikeSimFileError(f"no such sensor JSON file: {args.sensor!r}")
-        return ss.Sensor.from_json(path.read_text()).replace(**overrides)
-    return ss.Sensor.preset(args.sensor, **overrides)
+    return load_sensor(args.sensor, parse_overrides(args.set))
 
 
 def _common(p, sensor_default: str = "ideal") -> None:

@@ -12,10 +12,13 @@ from spikesim.workload import RunawayWorkWarning
 
 def load_sensor(spec: str, overrides: dict):
     """The sensor of a ``--sensor`` option: a preset name, or a sensor ``.json`` file
-    (:meth:`spikesim.Sensor.to_json`), with ``--set``/``--size`` overrides applied."""
+    (:meth:`spikesim.Sensor.to_json`), with ``--set``/``--size`` overrides applied
+    (``cfa=mono`` or ``none``: monochrome)."""
     import spikesim as ss
     from spikesim.errors import SpikeSimFileError
 
+    if overrides.get("cfa") in ("mono", "none"):
+        overrides = dict(overrides, cfa=None)
     path = Path(spec)
     if path.suffix.lower() == ".json":
         if not path.is_file():
@@ -86,8 +89,6 @@ def run(args) -> int:
     if args.size:
         h, w = parse_size(args.size)
         overrides.update(height=h, width=w)
-    if "cfa" in overrides and overrides["cfa"] in ("mono", "none"):
-        overrides["cfa"] = None
     sensor = load_sensor(args.sensor, overrides)
     out = Path(args.out)
     if out.suffix.lower() not in (".h5", ".hdf5", ".dat"):
