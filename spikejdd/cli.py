@@ -19,7 +19,6 @@ import os
 import shlex
 import sys
 
-from spikesim._validate import check_int
 from spikesim.cli_guard import (
     OneLineParser,
     check_cli_numbers,
@@ -179,7 +178,6 @@ def _evaluate(args) -> int:
         return 2
     for m in methods:  # every name checked before any work
         get_method(m)
-    check_int("--panels", args.panels, 0, unit="image panels")
     device = _configure(args)
     outputs: dict = {}
     if args.sweep:

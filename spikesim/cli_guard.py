@@ -218,6 +218,7 @@ _CLI_INTS = {
     "step": (1, MAX_READOUTS, "readouts"), "limit": (1, None, "sequences"),
     "workers": (0, 1024, "processes"), "repeats": (1, 10_000, "timed calls"),
     "per_sequence": (1, 1_000_000, "frames"), "frames_per_scene": (1, 1_000_000, "frames"),
+    "panels": (0, 10_000, "image panels"),
     "centers": (1, 1_000_000, "readouts"), "seed": (0, 2**64 - 1, ""),
     "steps": (1, None, "steps"), "batch_size": (1, 1 << 20, "samples"),
     "crop": (1, 1 << 16, "pixels"), "threads": (1, 4096, "threads"),

@@ -61,8 +61,7 @@ def convert(src, dst, start: int = 0, length: int | None = None, crop=None,
 
     from spikesim._validate import check_crop, check_window
     from spikesim.cfa import cfa_after_crop
-    from spikesim.io import DEFAULT_COMPRESSION
-    from spikesim.io._compression import compression_kwargs
+    from spikesim.io import DEFAULT_COMPRESSION, compression_kwargs
     from spikesim.io.dat import DatWriter
     from spikesim.io.h5 import H5Writer
     from spikesim.io.source import is_dat
@@ -124,7 +123,7 @@ def run(args) -> int:
     if not args.dst.lower().endswith((".dat", ".h5", ".hdf5")):
         raise bad_value("DST", args.dst, "a path ending in .dat, .h5 or .hdf5")
     from spikesim.errors import SpikeSimValueError
-    from spikesim.io._compression import compression_kwargs
+    from spikesim.io import compression_kwargs
 
     try:
         compression_kwargs(args.compression)

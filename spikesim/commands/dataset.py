@@ -42,9 +42,9 @@ def run(args) -> int:
         if not sep or not name.strip():
             raise SpikeSimValueError(f"--set {item!r}: expected NAME=VALUE")
         variables[name.strip()] = value
-    from spikesim.dataset.build import _check_one_executor
+    from spikesim.dataset.build import check_executors
 
-    _check_one_executor(args.workers, args.scheduler, args.dask_local,
+    check_executors(args.workers, args.scheduler, args.dask_local,
                         names=("--workers", "--scheduler", "--dask-local"))
     manifest = load_manifest(args.manifest, variables)
     if args.dry_run:

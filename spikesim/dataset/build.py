@@ -48,7 +48,7 @@ from spikesim.dataset.worker import run_batch, run_task, validate_existing
 from spikesim.errors import SpikeSimFileError, bad_value
 from spikesim.scenes import frame_cache
 
-__all__ = ["BuildSummary", "build_dataset", "estimate_dataset"]
+__all__ = ["BuildSummary", "build_dataset", "check_executors", "estimate_dataset"]
 
 #: Seconds to wait for a Dask scheduler to answer.
 SCHEDULER_TIMEOUT_S = 10
@@ -93,8 +93,8 @@ def _remove_stale_temps(out: Path, splits) -> int:
     return sum(remove_stale_temps(out / split) for split in splits if (out / split).is_dir())
 
 
-def _check_one_executor(workers: int, scheduler, dask_local,
-                        names=("workers", "scheduler", "dask_local")) -> None:
+def check_executors(workers: int, scheduler, dask_local,
+                    names=("workers", "scheduler", "dask_local")) -> None:
     """Refuse two executors at once (``names``: how the caller calls the options)."""
     w, sch, dl = names
     if scheduler is not None and dask_local is not None:
@@ -157,7 +157,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     workers = _check_workers(workers)
     if dask_local is not None:
         _check_workers(dask_local)
-    _check_one_executor(workers, scheduler, dask_local)
+    check_executors(workers, scheduler, dask_local)
     if scheduler is not None:
         _probe_scheduler(scheduler)  # an unreachable scheduler is refused before any write
     out = Path(out_dir)

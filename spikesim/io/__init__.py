@@ -4,7 +4,7 @@ See ``docs/io.md`` for the formats, the chunking and compression choices and
 their measured trade-offs.
 """
 
-from spikesim.io._compression import COMPRESSIONS, DEFAULT_COMPRESSION
+from spikesim.io._compression import COMPRESSIONS, DEFAULT_COMPRESSION, compression_kwargs
 from spikesim.io.atomic import atomic_path
 from spikesim.io.dat import (
     KNOWN_SENSOR_SIZES,
@@ -40,6 +40,7 @@ from spikesim.io.verify import verify, verify_file
 __all__ = [
     "COMPRESSIONS",
     "DEFAULT_COMPRESSION",
+    "compression_kwargs",
     "FORMAT_VERSION",
     "KNOWN_SENSOR_SIZES",
     "RAW_HEAD_COLUMNS",
