@@ -17,6 +17,9 @@ def register(sub) -> None:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run on an existing Dask scheduler, e.g. tcp://10.0.0.1:8786")
     p.add_argument("--limit", type=int, default=None, help="only the first N sequences")
+    p.add_argument("--prune", action="store_true",
+                   help="delete sequence files in the output that the manifest no longer makes "
+                        "(left by a build of an earlier version of it)")
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan with disk and time estimates, write nothing")
     p.add_argument("--list", action="store_true", help="list the built-in manifests")
@@ -70,7 +73,7 @@ def run(args) -> int:
     if args.limit is not None:
         check_int("--limit", args.limit, 1, unit="sequences")
     summary = build_dataset(manifest, args.out, workers=args.workers, scheduler=args.scheduler,
-                            dask_local=args.dask_local, limit=args.limit)
+                            dask_local=args.dask_local, limit=args.limit, prune=args.prune)
     print(summary.line())
     for rec in summary.failures:
         print(f"  failed {rec['file']}: {rec['error']}")

@@ -136,7 +136,8 @@ def _check_workers(workers) -> int:
 
 def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int = 1,
                   scheduler: str | None = None, dask_local: int | None = None,
-                  progress: bool = True, limit: int | None = None) -> BuildSummary:
+                  progress: bool = True, limit: int | None = None,
+                  prune: bool = False) -> BuildSummary:
     """Generate every sequence of ``manifest`` under ``out_dir/<split>/``.
 
     Parameters
@@ -149,6 +150,10 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         Start a local Dask cluster with this many worker processes.
     limit : int, optional
         Only the first ``limit`` sequences of the plan (for trials).
+    prune : bool
+        Delete the sequence files of the plan's split folders that the plan does not
+        make (left by a build of an earlier version of the manifest); without it they
+        are kept, indexed with the rest, and a warning names them.  Not with ``limit``.
     """
     from tqdm.auto import tqdm
 
@@ -158,6 +163,11 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     if dask_local is not None:
         _check_workers(dask_local)
     check_executors(workers, scheduler, dask_local)
+    if not isinstance(prune, bool):
+        raise bad_value("prune", prune, "True or False")
+    if prune and limit is not None:
+        raise bad_value("prune", prune, "False with limit (a limited build makes only part "
+                        "of the plan: the rest would be deleted)")
     if scheduler is not None:
         _probe_scheduler(scheduler)  # an unreachable scheduler is refused before any write
     out = Path(out_dir)
@@ -242,27 +252,35 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         bar.close()
     summary.seconds = time.perf_counter() - t0
     _remove_stale_temps(out, splits)  # those of workers that died (os._exit, kill -9)
+    if limit is None:
+        _unplanned(out, tasks, prune)
     for split in splits:
         if (out / split).is_dir():
             build_index(out / split)
     _write_summary(out / "build_summary.json", summary)
-    if limit is None:
-        _warn_unplanned(out, tasks)
     return summary
 
 
-def _warn_unplanned(out: Path, tasks: list[dict]) -> None:
-    """Warn about sequence files in the split folders that this plan does not make (left
-    by a build of an earlier version of the manifest): they are indexed and read too."""
+def _unplanned(out: Path, tasks: list[dict], prune: bool) -> None:
+    """Sequence files in the split folders that this plan does not make (left by a build
+    of an earlier version of the manifest): deleted with ``prune``, else a warning (they
+    are indexed and read with the rest)."""
     planned = {t["file"] for t in tasks}
-    extra = sorted(f"{p.parent.name}/{p.name}" for split in {t["split"] for t in tasks}
+    extra = sorted(out / split / p.name for split in {t["split"] for t in tasks}
                    for p in (out / split).glob("*.h5") if f"{split}/{p.name}" not in planned)
-    if extra:
-        shown = ", ".join(extra[:3]) + (f" and {len(extra) - 3} more" if len(extra) > 3 else "")
-        warnings.warn(f"{len(extra)} sequence file(s) in {out} are not in this manifest's plan "
-                      f"({shown}), left by an earlier build: they are indexed and read with "
-                      "the rest; delete them (and re-run) if the manifest dropped them",
-                      UserWarning, stacklevel=3)
+    if not extra:
+        return
+    names = [f"{p.parent.name}/{p.name}" for p in extra]
+    shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+    if prune:
+        for p in extra:
+            p.unlink(missing_ok=True)
+        print(f"pruned {len(extra)} sequence file(s) the plan does not make ({shown})",
+              file=sys.stderr)
+        return
+    warnings.warn(f"{len(extra)} sequence file(s) in {out} are not in this manifest's plan "
+                  f"({shown}), left by an earlier build: they are indexed and read with the "
+                  "rest; --prune (prune=True) deletes them", UserWarning, stacklevel=3)
 
 
 def _record_finished(pending: list[dict], out: Path, summary: BuildSummary) -> None:

@@ -62,11 +62,25 @@ def _manifest_of(root: Path) -> str:
     return manifest if isinstance(manifest, str) and manifest else "MANIFEST"
 
 
+def _planned(root: Path, path: Path) -> bool:
+    """Whether the last build's ``plan.json`` makes ``path`` (True when it cannot tell)."""
+    try:
+        tasks = json.loads((root / "plan.json").read_text())["tasks"]
+        files = {t["file"] for t in tasks}
+    except (OSError, ValueError, KeyError, TypeError):
+        return True
+    return path.relative_to(root).as_posix() in files
+
+
 def dataset_advice(path: Path) -> str | None:
     """How to remake a damaged file of a dataset folder (None for a file of no dataset)."""
     root = _dataset_root(path)
     if root is None:
         return None
+    if not _planned(root, path):
+        return (f"it is in the dataset folder {str(root)!r} but not in the plan of its last "
+                f"build (left by an earlier manifest), so no build remakes it: delete it "
+                f"(rm {str(path)!r}), or run the build with --prune")
     return (f"it belongs to the dataset built in {str(root)!r}: delete it (rm {str(path)!r}) "
             f"and run the same build again (spikesim dataset {_manifest_of(root)} --out "
             f"{str(root)!r}, with the same --set values), which remakes the missing file")

@@ -321,5 +321,21 @@ def test_files_the_plan_no_longer_makes_are_warned_about(tmp_path):
         warnings.simplefilter("error")
         build_dataset(parse_manifest(small_manifest(count=3)), out, progress=False)  # same
     with pytest.warns(UserWarning, match=r"1 sequence file\(s\) in .* not in this manifest's "
-                                         r"plan \(train/.*\.h5\)"):
+                                         r"plan \(train/.*\.h5\).*--prune"):
         build_dataset(parse_manifest(small_manifest(count=2)), out, progress=False)
+    import json
+
+    from spikesim.io import verify_file
+
+    planned = {t["file"] for t in json.loads((out / "plan.json").read_text())["tasks"]}
+    leftover, = [p for p in (out / "train").glob("*.h5") if f"train/{p.name}" not in planned]
+
+    leftover.write_bytes(leftover.read_bytes()[:100])  # damaged: verify says how to be rid of it
+    report = verify_file(leftover)
+    assert "not in the plan of its last build" in report["advice"]
+    with pytest.raises(SpikeSimValueError, match="prune=True is invalid.*limit"):
+        build_dataset(parse_manifest(small_manifest(count=2)), out, progress=False,
+                      prune=True, limit=1)
+    build_dataset(parse_manifest(small_manifest(count=2)), out, progress=False, prune=True)
+    assert len(list((out / "train").glob("*.h5"))) == 2
+    assert len(open_dataset(out / "train")) == 2
