@@ -60,13 +60,14 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
                    progress: bool = False) -> AnalysisResult:
     """ISI mean, within-pixel and pooled variance per flat-field radiance, with theory.
 
-    Levels whose ideal rate ``r·I`` is 1 or more (one spike every readout) are
-    skipped.  Raises when a level yields fewer than two intervals per pixel
+    Levels whose ideal rate ``r·I`` is 0 or 1 or more (one spike every readout) are
+    skipped, with a note naming them.  Raises when a level yields fewer than two intervals per pixel
     (``n_readouts`` too short for that intensity).
     """
     sensor = check_sensor(sensor)
-    lv = check_levels(levels)
-    lv = lv[(lv > 0) & (lv * sensor.full_scale_rate < 1)]
+    asked = check_levels(levels)
+    lv = asked[(asked > 0) & (asked * sensor.full_scale_rate < 1)]
+    left_out = [float(v) for v in asked if v not in lv]
     if lv.size == 0:
         raise bad_value("levels", levels, "some radiance with 0 < r·I < 1 (r = full_scale_rate)")
     kappa2 = theory.cycle_cv2(sensor.noise)
@@ -121,6 +122,9 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
         "fraction of intervals equal to floor or ceil of 1/q at the median pixel (1 when "
         "noise free and without fixed pattern).",
     ]
+    if left_out:
+        notes.append(f"Radiances left out: {left_out} (r·I = 0 or >= 1: no spike, or one "
+                     "every readout, so no interval to describe).")
 
     def plot(fig):
         axes = fig.subplots(1, 2)

@@ -98,13 +98,16 @@ class SNRConfig:
         object.__setattr__(self, "dr_window", dr)
 
 
-def _tfp_snr_theory(model, q, v1, w, r, noisy: bool) -> float:
-    """SNR of the TFP estimate over window ``w`` from the rate and count theory."""
-    cvar = np.where(q < 1, theory.count_variance(np.minimum(q, 1), w, v1), 0.0)
+def _tfp_snr_theory(model, q, v1, w, r, noise) -> float:
+    """SNR of the TFP estimate over window ``w`` from the rate and count theory (NaN where
+    :func:`spikesim.analysis.theory.theory_holds` says it does not hold)."""
+    if not theory.theory_holds(q, v1, noise, near_saturation=False) or (
+            noise is not None and np.any((q > 0.95) & (q < 1))):
+        return np.nan  # in the dark with charge noise, or this close to saturation
+    qe, v1e = theory.with_reset_loss(q, v1, theory.reset_loss(noise))
+    cvar = np.where(qe < 1, theory.count_variance(np.minimum(qe, 1), w, v1e), 0.0)
     var_th = model.var() / r**2 + cvar.mean() / (w * r) ** 2
     mean_th = model.mean() / r
-    if np.any((q > 0.95) & (q < 1)) and noisy:
-        return np.nan  # the count theory is not valid this close to saturation
     if var_th > 0:
         return mean_th / np.sqrt(var_th)
     return np.inf if mean_th > 0 else np.nan
@@ -157,7 +160,7 @@ def measure_snr(sensor, levels: np.ndarray, cfg: SNRConfig, progress: bool = Fal
                 dark_mean[w] = m
             res[f"tfp_snr_w{w}"].append(m / s if s > m * 1e-9 else np.inf)
             res[f"tfp_snr_theory_w{w}"].append(
-                _tfp_snr_theory(model, q, v1, w, r, sensor.noise is not None))
+                _tfp_snr_theory(model, q, v1, w, r, sensor.noise))
             res.setdefault(f"mean_tfp_w{w}", []).append(m)
         measured, predicted = _tfi_snr(run.spikes, q, cfg, sensor.noise, r)
         res["tfi_snr"].append(measured)

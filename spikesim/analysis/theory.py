@@ -71,6 +71,8 @@ __all__ = [
     "isi_cv2_theory",
     "charge_noise_var",
     "reset_loss",
+    "with_reset_loss",
+    "theory_holds",
     "isi_clean_pmf",
 ]
 
@@ -166,6 +168,38 @@ def charge_noise_var(noise) -> float:
     if not isinstance(noise, PhysicalNoise):
         return 0.0
     return float((noise.charge_noise_electrons / noise.electrons_per_threshold) ** 2)
+
+
+def with_reset_loss(q, v1, loss: float):
+    """``(q_eff, v1_eff)``: the charge and per-readout variance that make
+    :func:`count_variance` describe a pixel with charge loss ``f`` at reset.  A count
+    over many cycles is a renewal count: mean ``w/E[τ]``, variance ``w·Var(τ)/E[τ]³``;
+    without loss ``E[τ] = 1/q`` and ``w·Var(τ)·q³ = w·v1``, and the loss only moves
+    ``E[τ]`` to ``1/q + f``, so ``q_eff = q/(1 + f·q)`` and ``v1_eff = v1·(q_eff/q)³``."""
+    q = np.asarray(q, dtype=np.float64)
+    v1 = np.asarray(v1, dtype=np.float64)
+    f = _fraction(loss, "loss")
+    if f == 0.0:
+        return q, v1
+    q_eff = q / (1.0 + f * q)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(q > 0, q_eff / np.where(q > 0, q, 1.0), 1.0)
+    return q_eff, v1 * ratio**3
+
+
+def theory_holds(q, v1, noise, near_saturation: bool = True) -> bool:
+    """Whether the count and rate theory describes pixels of charge ``q`` (thresholds per
+    readout) with per-readout charge variance ``v1``: not with noise where some pixel's
+    charge is within ``0.05 + 3·sqrt(v1)`` of one threshold (the per-readout clipping
+    couples the sources; checked when ``near_saturation``), nor with accumulating
+    charge noise ``σ_q²`` where some pixel's drift ``q < 10·σ_q²`` (the charge, held at
+    0, then crosses by diffusion alone)."""
+    if noise is None:
+        return True
+    q = np.asarray(q, dtype=np.float64)
+    near = np.abs(q - 1.0) < 0.05 + 3.0 * np.sqrt(np.maximum(np.asarray(v1, float), 0.0))
+    s2 = charge_noise_var(noise)
+    return not ((near_saturation and np.any(near)) or (s2 > 0 and np.any(q < 10.0 * s2)))
 
 
 def reset_loss(noise) -> float:

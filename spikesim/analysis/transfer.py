@@ -85,18 +85,20 @@ def transfer_curve(sensor="ideal", levels=DEFAULT_LEVELS, n_readouts: int = 2000
     for level in it:
         run = simulate_flat(sensor, level, n_readouts, seed, size)
         rate, fpn, tsd = window_spreads(run.spikes, window)
-        model = theory.rate_theory(run.q, sensor.reset)
+        loss = theory.reset_loss(sensor.noise)
+        model = theory.rate_theory(run.q, sensor.reset, loss)
         v1 = theory.charge_variance_per_readout(run.q, sensor.noise, r, level)
-        qc = np.minimum(run.q, 1)
-        cvar = np.where(run.q < 1, theory.count_variance(qc, window, v1), 0.0)
-        tot = np.where(run.q < 1, theory.count_variance(qc, n_readouts, v1), 0.0)
+        holds = theory.theory_holds(run.q, v1, sensor.noise)
+        qe, v1e = theory.with_reset_loss(run.q, v1, loss)
+        qc = np.minimum(qe, 1)
+        cvar = np.where(qe < 1, theory.count_variance(qc, window, v1e), 0.0)
+        tot = np.where(qe < 1, theory.count_variance(qc, n_readouts, v1e), 0.0)
         fpn_theory = float(np.sqrt(model.var() + tot.mean() / n_readouts**2))
-        # near saturation the per-readout clipping couples the noise sources: no theory
-        # where a pixel's charge is within 0.05 + 3 s.d. of its per-readout noise of 1
-        near = np.abs(run.q - 1.0) < 0.05 + 3.0 * np.sqrt(np.maximum(v1, 0.0))
-        valid = sensor.reset != "zero" and not (sensor.noise is not None and np.any(near))
-        vals = (float(rate.mean()), min(r * level, 1.0), float(model.mean()), fpn,
-                fpn_theory, tsd, float(np.sqrt(cvar.mean())) / window if valid else np.nan)
+        temporal = float(np.sqrt(cvar.mean())) / window
+        vals = (float(rate.mean()), min(r * level, 1.0),
+                float(model.mean()) if holds else np.nan, fpn,
+                fpn_theory if holds else np.nan, tsd,
+                temporal if holds and sensor.reset != "zero" else np.nan)
         for k, v in zip(out, vals, strict=True):
             out[k].append(v)
         rows.append((level, *vals))
@@ -110,9 +112,11 @@ def transfer_curve(sensor="ideal", levels=DEFAULT_LEVELS, n_readouts: int = 2000
         f"{sensor.noise.to_dict() if sensor.noise else None}.",
         "Rates in spikes per readout. *model* uses the sensor's own fixed pattern "
         "(q_i = r·(g_i·I + d_i)/t_i); FPN = spread of per-pixel mean rates; temporal = "
-        f"spread of one pixel's rate over {window}-readout windows. The temporal theory "
-        "assumes q < 1: with noise it is not given (–) where some pixel's charge per "
-        "readout is within 0.05 + 3 noise s.d. of one threshold, nor for zero reset.",
+        f"spread of one pixel's rate over {window}-readout windows; the charge loss at "
+        "reset is included. With noise the theory columns are not given (–) where some "
+        "pixel's charge per readout is within 0.05 + 3 noise s.d. of one threshold, or, "
+        "with accumulating charge noise σ_q², below 10·σ_q² (spikes from diffusion "
+        "alone); the temporal theory is not given for zero reset.",
     ]
 
     def plot(fig):

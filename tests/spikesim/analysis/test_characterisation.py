@@ -122,6 +122,30 @@ def test_isi_and_tfi_theory_include_charge_noise_and_charge_loss():
         assert m == pytest.approx(t, rel=0.08)
 
 
+def test_tfp_and_transfer_theory_include_the_charge_loss_and_stop_where_it_fails():
+    """With a charge loss at reset the TFP SNR and transfer theory follow the renewal
+    count (mean 1/q + f per cycle); with accumulating charge noise the theory is not
+    given (NaN, '–' in the report) in the dark, where diffusion alone fires, nor near
+    saturation; a saturated ISI level is named in a note."""
+    lossy = MONO.replace(noise=only(shot_noise=True, electrons_per_threshold=400.0,
+                                    reset_charge_loss=0.05))
+    d = snr_curve(lossy, (0.2, 1.0), (11, 41), n_readouts=2000, size=(32, 32)).data
+    for w in (11, 41):
+        for m, t in zip(d[f"tfp_snr_w{w}"], d[f"tfp_snr_theory_w{w}"], strict=True):
+            assert m == pytest.approx(t, rel=0.05)  # without f: 16 % off at I = 0.5
+    walk = MONO.replace(noise=only(shot_noise=True, charge_noise_electrons=8.0,
+                                   reset_charge_loss=0.05))
+    t = transfer_curve(walk, (0.0, 0.5, 1.66), n_readouts=2000, size=(32, 32),
+                       window=50).data
+    assert t["mean_rate"][0] > 0 and np.isnan(t["model_rate"][0])  # diffusion fires
+    assert t["model_rate"][1] == pytest.approx(t["mean_rate"][1], rel=0.01)
+    assert t["temporal_sd"][1] == pytest.approx(t["temporal_sd_theory"][1], rel=0.06)
+    for key in ("model_rate", "fpn_sd_theory", "temporal_sd_theory"):
+        assert np.isnan(t[key][0]) and np.isnan(t[key][2]), key
+    res = isi_statistics(MONO, (0.05, 2.0), n_readouts=500, size=(8, 8))
+    assert list(res.data["levels"]) == [0.05] and "left out: [2.0]" in res.notes[-1]
+
+
 def test_isi_fixed_pattern_broadens_pooled_not_within():
     res = isi_statistics(MONO.replace(noise=only(prnu=0.08)), (0.05,), n_readouts=4000,
                          size=(8, 8))
