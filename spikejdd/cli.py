@@ -364,6 +364,10 @@ def _reconstruct_into(args, written: list) -> None:
 
         cap = open_dat(src, args.height or 250, args.width or 400, flip=not args.no_flip,
                        head_columns=args.head_columns, cfa=args.cfa)
+        if args.cfa is None:
+            print(f"spikejdd reconstruct: note: {src.name} records no colour filter: read as "
+                  "monochrome (--cfa RGGB, or the sensor's pattern, for a Bayer capture)",
+                  file=sys.stderr)
         n, cfa, rate = cap.n_readouts, cap.cfa, args.rate or 0.6
         centers = _centers(args.centers, [n // 2])
 
@@ -409,7 +413,8 @@ def _reconstruct_into(args, written: list) -> None:
             try:
                 rgb = call_method(m, spikes, cfa, c - start, rate=rate, **options)
             except SpikeSimValueError as exc:
-                if cfa is None and args.cfa is None and src.suffix.lower() == ".dat":
+                if (cfa is None and args.cfa is None and src.suffix.lower() == ".dat"
+                        and "cfa" in str(exc)):
                     exc.args = (f"{exc} (a .dat records no colour filter: give --cfa RGGB, "
                                 "or the sensor's pattern, for a colour capture)",)
                 raise

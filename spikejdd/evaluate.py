@@ -415,29 +415,43 @@ def panel_image(tiles: list[np.ndarray], labels: list[str], crop: int = PANEL_CR
     top, left = (h - ch) // 2, (w - cw) // 2
     scale = max(1, int(np.ceil(96 / max(ch, cw))))
     line = 14  # pixels per label line
-    per_line = max(1, (cw * scale - 4) // 6)  # characters of the 6-pixel font that fit
-    wrapped = [_wrap_label(label, per_line) for label in labels]
+    wrapped = [_wrap_label(label, cw * scale - 4) for label in labels]
     strip = line * max(len(w) for w in wrapped)
     out = []
     for img, lines in zip(tiles, wrapped, strict=True):
         t = linear_to_srgb8(img[top:top + ch, left:left + cw])
         t = np.repeat(np.repeat(t, scale, axis=0), scale, axis=1)
         head = np.full((strip, t.shape[1], 3), 255, np.uint8)
+        face, size, thick = _LABEL_FONT
         for k, text in enumerate(lines):
-            cv2.putText(head, text, (2, line * (k + 1) - 4), cv2.FONT_HERSHEY_PLAIN, 0.8,
-                        (0, 0, 0), 1, cv2.LINE_AA)
+            cv2.putText(head, text, (2, line * (k + 1) - 4), face, size, (0, 0, 0), thick,
+                        cv2.LINE_AA)
         tile = np.concatenate([head, t], axis=0)
         out += [tile, np.full((tile.shape[0], 2, 3), 255, np.uint8)]
     return np.concatenate(out[:-1], axis=1)
 
 
+#: The label font (OpenCV's plain Hershey font at this scale, 1 pixel thick).
+_LABEL_FONT = (1, 0.8, 1)  # cv2.FONT_HERSHEY_PLAIN (1), scale, thickness
+
+
+def _text_width(text: str) -> int:
+    import cv2
+
+    face, scale, thick = _LABEL_FONT
+    return cv2.getTextSize(text, face, scale, thick)[0][0]
+
+
 def _wrap_label(label: str, width: int) -> list[str]:
-    """``label`` in lines of at most ``width`` characters, broken after ``+ : @ /``
-    where possible (``tfp+menon2007+`` / ``nlm``), so no two labels are cut alike."""
+    """``label`` in lines at most ``width`` pixels wide in the label font, broken after
+    ``+ : @ /`` where possible (``tfp+menon2007+`` / ``nlm``), so that every character
+    shows and no two labels are cut alike."""
     lines, rest = [], label
-    while len(rest) > width:
-        cut = max(rest.rfind(c, 0, width) for c in "+:@/") + 1
-        cut = cut if cut > 0 else width
+    while rest and _text_width(rest) > width:
+        fit = max(1, max(n for n in range(1, len(rest) + 1)
+                         if n == 1 or _text_width(rest[:n]) <= width))
+        cut = max(rest.rfind(c, 0, fit) for c in "+:@/") + 1
+        cut = cut if cut > 0 else fit
         lines.append(rest[:cut])
         rest = rest[cut:]
     return lines + [rest] if rest else lines or [""]

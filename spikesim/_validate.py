@@ -12,6 +12,8 @@ from __future__ import annotations
 import math
 import numbers
 
+import numpy as np
+
 from spikesim.errors import bad_value
 
 __all__ = ["check_crop", "check_int", "check_positive",
@@ -124,3 +126,11 @@ def check_size(size: object) -> tuple[int, int]:
     if not ok or h < 1 or w < 1:
         raise bad_value("size", size, "(H, W) with integers H >= 1 and W >= 1")
     return int(h), int(w)
+
+
+def check_flag(name: str, value: object) -> bool:
+    """``value`` as a ``bool``; anything but ``True``/``False`` (or NumPy's) is refused:
+    ``flip="no"`` is a typo to report, not a true value to take."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise bad_value(name, value, "True or False")
+    return bool(value)

@@ -112,7 +112,7 @@ def window_bounds(n_readouts: int, center: int | None, window: int) -> tuple[int
         raise bad_value("window", window, f"at least 1 readout (stream has {n_readouts})")
     if window > n_readouts:
         raise bad_value("window", window, f"at most the {n_readouts} readouts given (a longer "
-                        "stream, or a wider --context in spikejdd evaluate)")
+                        "stream, or a wider context: --context of spikejdd's commands)")
     c = _check_center(center, n_readouts)
     start = c - window // 2
     start = min(max(start, 0), n_readouts - window)

@@ -20,7 +20,7 @@ import numpy as np
 
 from spikesim import _kernels, _mosaic, rng
 from spikesim._memory import ArrayPool, RecycledOutput
-from spikesim._validate import check_int
+from spikesim._validate import check_flag, check_int
 from spikesim._version import __version__
 from spikesim.bits import packed_width
 from spikesim.cfa import LUMA_WEIGHTS, channel_index
@@ -80,7 +80,7 @@ class SimulationRun:
         self.n_readouts = check_int("n_readouts", n_readouts, 1)
         check_key_frames(scene, self.n_readouts / sensor.clock_hz)
         self.seed = check_int("seed", seed, 0, 2**64 - 1)
-        self.clean_twin = bool(clean_twin)
+        self.clean_twin = check_flag("clean_twin", clean_twin)
         if gt_readouts is None:
             gt = [self.n_readouts // 2]
         elif isinstance(gt_readouts, str) and gt_readouts == "all":
@@ -93,7 +93,7 @@ class SimulationRun:
             per_readout = sensor.height * nbytes * (2 if self.clean_twin else 1)
             chunk_readouts = max(16, min(4096, CHUNK_OUTPUT_BYTES // max(per_readout, 1)))
         self.chunk_readouts = check_int("chunk_readouts", chunk_readouts, 1)
-        self.progress = bool(progress)
+        self.progress = check_flag("progress", progress)
         if shot_sampler not in _SHOT_SAMPLERS:
             raise bad_value("shot_sampler", shot_sampler, f"one of {_SHOT_SAMPLERS}")
         self.shot_sampler = shot_sampler

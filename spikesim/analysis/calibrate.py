@@ -329,7 +329,9 @@ def _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected,
         "Identifiability: threshold mismatch and PRNU are split with mismatch_split = "
         f"{cfg.mismatch_split:.3g} (combined response spread fitted: "
         f"{diag['combined_gain_spread']:.4g}); comparator jitter and shot noise share the "
-        f"fitted cycle CV² κ² = {diag['kappa2']:.4g} " + temporal,
+        f"fitted cycle CV² κ² = {diag['kappa2']:.4g} " + temporal + " The charge loss at "
+        "reset (reset_charge_loss) is not fitted and is held at 0: a loss f would appear as "
+        "a slightly lower rate (q/(1 + f·q)) folded into the response.",
         *notes,
     ]
     if fit is not None:

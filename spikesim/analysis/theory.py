@@ -84,10 +84,26 @@ _M = np.arange(1, _FOURIER_TERMS + 1, dtype=np.float64)[None, :]
 RESETS = ("modulo", "subtract", "zero")
 
 
+def _numbers(value, name: str) -> np.ndarray:
+    """``value`` as float64 when it holds real numbers (not strings), else an error."""
+    raw = np.asarray(value)
+    if raw.dtype.kind not in "biuf":
+        raise bad_value(name, value, "real numbers (a number or an array of them)")
+    return raw.astype(np.float64)
+
+
+def _noise_model(noise):
+    """``noise`` when it is a noise model or None, else an error naming it."""
+    if noise is not None and not isinstance(noise, (PaperNoise, PhysicalNoise)):
+        raise bad_value("noise", noise, "a spikesim.noise model (PaperNoise, PhysicalNoise) "
+                        "or None")
+    return noise
+
+
 def _charge(q, interval: bool = False) -> np.ndarray:
     """``q`` as float64, checked: finite and ≥ 0; for interval statistics
     ``0 < q ≤ 1`` (a pixel at q ≥ 1 fires at every readout: no interval to describe)."""
-    arr = np.asarray(q, dtype=np.float64)
+    arr = _numbers(q, "q")
     if not np.all(np.isfinite(arr)):
         raise bad_value("q", q, "finite charges per readout (thresholds)")
     if interval and (np.any(arr <= 0) or np.any(arr > 1)):
@@ -137,8 +153,10 @@ def frac_variance(mean, sd) -> np.ndarray:
     ``E[cos(2πmX)] = cos(2πm·mean)·exp(−2π²m²sd²)`` (exact up to truncation at
     :data:`_FOURIER_TERMS` terms, error < 1/(π²·M)).
     """
-    mean = np.asarray(mean, dtype=np.float64)
-    sd = np.asarray(sd, dtype=np.float64)
+    mean = _numbers(mean, "mean")
+    sd = _numbers(sd, "sd")
+    if np.any(~(sd >= 0)):
+        raise bad_value("sd", sd, "standard deviations >= 0")
     mean, sd = np.broadcast_arrays(mean, sd)
     f0 = mean - np.floor(mean)
     out = f0 * (1.0 - f0)
@@ -154,7 +172,7 @@ def frac_variance(mean, sd) -> np.ndarray:
 
 def cycle_cv2(noise) -> float:
     """Squared coefficient of variation κ² of one firing cycle (physical noise)."""
-    if not isinstance(noise, PhysicalNoise):
+    if not isinstance(_noise_model(noise), PhysicalNoise):
         return 0.0
     k2 = noise.temporal_threshold_noise**2
     if noise.shot_noise:
@@ -165,7 +183,7 @@ def cycle_cv2(noise) -> float:
 def charge_noise_var(noise) -> float:
     """``σ_q²`` (thresholds² per readout) of the accumulating charge noise
     (nominal threshold; 0 for other models)."""
-    if not isinstance(noise, PhysicalNoise):
+    if not isinstance(_noise_model(noise), PhysicalNoise):
         return 0.0
     return float((noise.charge_noise_electrons / noise.electrons_per_threshold) ** 2)
 
@@ -204,7 +222,8 @@ def theory_holds(q, v1, noise, near_saturation: bool = True) -> bool:
 
 def reset_loss(noise) -> float:
     """The charge loss at reset ``f`` (``reset_charge_loss``; 0 for other models)."""
-    return float(noise.reset_charge_loss) if isinstance(noise, PhysicalNoise) else 0.0
+    return float(noise.reset_charge_loss) if isinstance(_noise_model(noise), PhysicalNoise) \
+        else 0.0
 
 
 def charge_variance_per_readout(q, noise, full_scale_rate: float, intensity=None):
@@ -214,8 +233,10 @@ def charge_variance_per_readout(q, noise, full_scale_rate: float, intensity=None
     per threshold are ignored to first order).  Paper mode (eq. 5):
     ``r²·(σ_g² + σ_p²·y)/255²``, ``y = 255·intensity`` (clipping at 0 ignored).
     """
-    q = np.asarray(q, dtype=np.float64)
-    if isinstance(noise, PhysicalNoise):
+    q = _charge(q)
+    if not (np.isfinite(full_scale_rate) and full_scale_rate > 0):
+        raise bad_value("full_scale_rate", full_scale_rate, "a rate > 0 (spikes per readout)")
+    if isinstance(_noise_model(noise), PhysicalNoise):
         return q * cycle_cv2(noise) + charge_noise_var(noise)
     if isinstance(noise, PaperNoise):
         y = 255.0 * np.asarray(intensity if intensity is not None else 0.0, dtype=np.float64)
@@ -228,7 +249,10 @@ def count_variance(q, window: int, v1=0.0) -> np.ndarray:
     q = _charge(q)
     if isinstance(window, bool) or not isinstance(window, int | np.integer) or window < 1:
         raise bad_value("window", window, "an integer >= 1 readouts")
-    vx = window * np.asarray(v1, dtype=np.float64)
+    v1 = _numbers(v1, "v1")
+    if np.any(~(v1 >= 0)):
+        raise bad_value("v1", v1, "per-readout variances >= 0")
+    vx = window * v1
     return vx + frac_variance(window * q, np.sqrt(vx))
 
 
@@ -262,6 +286,9 @@ def isi_cv2_theory(q, kappa2: float = 0.0, sigma_q2: float = 0.0,
 
 def isi_clean_pmf(q: float) -> dict[int, float]:
     """Noise-free interval distribution: ``{floor(1/q): 1 − p, ceil(1/q): p}``."""
+    if np.ndim(q) != 0:
+        raise bad_value("q", q, "one charge per readout (a number; use isi_var_theory for "
+                        "arrays)")
     inv = 1.0 / float(_charge(q, interval=True))
     n = int(np.floor(inv))
     p = inv - n

@@ -107,8 +107,9 @@ def run(args) -> int:
             text = str(exc)
             for api, flag in (("options=", "--scene-set "), ("speed=", "--speed="),
                               ("motion=", "--motion="), ("name=", "SCENE=")):
-                if text.startswith(api):
-                    raise SpikeSimValueError(flag + text[len(api):]) from None
+                if text.startswith(api):  # (None in Python is the option left out)
+                    text = text[len(api):].replace("expected None", f"expected no {flag[:-1]}")
+                    raise SpikeSimValueError(flag + text) from None
             raise
     packed_bytes = args.readouts * sensor.height * ((sensor.width + 7) // 8)
     if not args.force:
@@ -127,7 +128,8 @@ def run(args) -> int:
     else:
         io.write_h5(out, run_)
     noise = sensor.noise.to_dict()["type"] if sensor.noise is not None else "none"
-    print(f"wrote {out} ({args.readouts} readouts, {sensor.height}x{sensor.width}, "
+    print(f"wrote {out} ({args.readouts} readout{'' if args.readouts == 1 else 's'}, "
+          f"{sensor.height}x{sensor.width}, "
           f"cfa={sensor.cfa or 'mono'}, reset={sensor.reset}, noise={noise}, "
           f"sensor={args.sensor}{' with --set' if args.set else ''})")
     return 0

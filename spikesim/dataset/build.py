@@ -244,9 +244,11 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         with contextlib.suppress(Exception):
             _write_summary(out / "build_summary.json", summary)
         if progress and not isinstance(exc, Exception):  # a stop, not an error
-            bar.write(f"stopped: {summary.done} of {len(pending)} sequences to make were "
-                      f"finished and kept in {out}; running the same build again makes the "
-                      f"other {len(pending) - summary.done - summary.failed}", file=sys.stderr)
+            bar.leave = False
+            bar.close()  # its count lags the files kept: cleared, not drawn again
+            print(f"stopped: {summary.done} of {len(pending)} sequences to make were "
+                  f"finished and kept in {out}; running the same build again makes the "
+                  f"other {len(pending) - summary.done - summary.failed}", file=sys.stderr)
         raise
     finally:
         bar.close()

@@ -11,18 +11,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import numpy as np
-
+from spikesim._validate import check_flag
 from spikesim.errors import SpikeSimTypeError, bad_value
 
 __all__ = ["check_flag", "check_out_path", "check_path_type"]
-
-
-def check_flag(name: str, value: object) -> bool:
-    """``value`` as a ``bool``; anything but ``True``/``False`` (or NumPy's) is refused."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise bad_value(name, value, "True or False")
-    return bool(value)
 
 
 def check_path_type(name: str, path: object) -> Path:

@@ -266,7 +266,7 @@ def test_reconstruct_dat_capture_writes_side_by_side_panels(tmp_path, capsys):
                  "--out", str(mono), "--quiet"]) == 0
     grey = cv2.imread(str(mono / "203_part2_key_id151_tfp_bilinear_000150.png"))
     assert (grey[..., 0] == grey[..., 1]).all() and (grey[..., 1] == grey[..., 2]).all()
-    capsys.readouterr()
+    assert "records no colour filter: read as monochrome" in capsys.readouterr().err
     assert main(["reconstruct", str(dat), "--methods", "sjdd", "--centers", "150",
                  "--out", str(tmp_path / "no"), "--quiet"]) == 1
     assert "give --cfa RGGB" in capsys.readouterr().err

@@ -108,11 +108,16 @@ def test_panel_labels_wrap_instead_of_cutting_alike():
     share a long prefix keep labels that differ."""
     tile = np.full((64, 96, 3), 0.5)
     names = ["tfp+menon2007+nlm", "tfp+menon2007+bilateral"]
-    assert evaluate._wrap_label(names[0], 15) == ["tfp+menon2007+", "nlm"]
-    assert evaluate._wrap_label("sjdd@runs/mine/best.pt", 15) == ["sjdd@runs/mine/", "best.pt"]
+    wide = evaluate._text_width("tfp+menon2007+")
+    assert evaluate._wrap_label(names[0], wide) == ["tfp+menon2007+", "nlm"]
+    assert evaluate._wrap_label("sjdd@runs/mine/best.pt", wide) == ["sjdd@runs/mine/",
+                                                                   "best.pt"]
+    long = "mym:good_with_a_really_long_descriptive_method_name"
+    lines = evaluate._wrap_label(long, 92)
+    assert "".join(lines) == long and max(map(evaluate._text_width, lines)) <= 92
     panel = evaluate.panel_image([tile, tile], names)
     strip = panel.shape[0] - 64  # 64×96 tiles are not enlarged; the label strip is above
-    assert strip == 28  # two lines
+    assert strip % 14 == 0 and strip >= 28  # wrapped to two lines or more
     w = (panel.shape[1] - 2) // 2
     assert not np.array_equal(panel[:strip, :w], panel[:strip, w + 2:])
 

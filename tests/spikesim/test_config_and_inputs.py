@@ -169,6 +169,11 @@ def test_bad_simulation_arguments():
             ss.simulate(scene, sensor, n)
     with pytest.raises(ValueError, match="seed"):
         ss.simulate(scene, sensor, 5, seed=-1)
+    # flags are True or False, never a string ("False" would be true)
+    with pytest.raises(ValueError, match="clean_twin='False' is invalid: expected True or"):
+        ss.simulate(scene, sensor, 5, clean_twin="False")
+    with pytest.raises(ValueError, match="progress='no'"):
+        ss.simulate_chunks(scene, sensor, 5, progress="no")
     with pytest.raises(ValueError, match="scene size"):
         ss.simulate(ss.scenes.Static(np.ones((5, 4))), sensor, 5)
     with pytest.raises(TypeError, match="scene"):

@@ -216,6 +216,7 @@ def test_dark_mask_alone_detects_the_flat_regions():
     for found, level in zip(res.flat_masks, (0.1, 0.25, 0.5), strict=True):
         assert not np.any(found & (img != level))
     assert "regions dark region from dark_mask, flat regions detected" in res.notes[0]
+    assert "reset_charge_loss) is not fitted and is held at 0" in res.notes[1]
     with pytest.raises(SpikeSimValueError, match="flat_masks.*detect=True"):
         calibrate(stream, dark_mask=img == 0, detect=False, check=False)
 

@@ -207,6 +207,13 @@ def test_bad_sweep_inputs():
     (lambda t: t.isi_var_theory(0.1, sigma_q2=np.inf), "sigma_q2"),
     (lambda t: t.isi_clean_pmf(2.0), r"q=2.0"),
     (lambda t: t.count_variance(0.1, 0), "window"),
+    (lambda t: t.isi_mean_theory("0.5"), "q='0.5'.*real numbers"),
+    (lambda t: t.count_variance(0.3, 41, v1=-1), "v1"),
+    (lambda t: t.frac_variance(0.3, -1), "sd"),
+    (lambda t: t.isi_clean_pmf(np.array([0.3, 0.4])), "one charge per readout"),
+    (lambda t: t.cycle_cv2("x"), "noise='x'"),
+    (lambda t: t.reset_loss(0.3), "noise=0.3"),
+    (lambda t: t.charge_variance_per_readout(0.3, None, -1), "full_scale_rate"),
 ])
 def test_theory_functions_refuse_what_they_do_not_describe(call, match):
     from spikesim.analysis import theory

@@ -70,7 +70,8 @@ def _dataset(tmp_path, make_stream, marker):
     root = tmp_path / "ds"
     (root / "train").mkdir(parents=True)
     if marker == "plan.json":
-        (root / "plan.json").write_text(json.dumps({"manifest": "my.toml", "tasks": []}))
+        tasks = [{"file": "train/seq0.h5"}, {"file": "train/seq1.h5"}]  # as a build plans
+        (root / "plan.json").write_text(json.dumps({"manifest": "my.toml", "tasks": tasks}))
     else:
         (root / marker).write_text("{}")
     write_h5(root / "train" / "seq0.h5", make_stream(n=40))
