@@ -150,8 +150,9 @@ def _reconstruct_parser(sub) -> None:
                          "panels")
     rc.add_argument("--out", required=True, help="output folder for PNGs")
     rc.add_argument("--weights", help="sjdd weights: a shipped name or a checkpoint path")
-    rc.add_argument("--centers", help="readouts to reconstruct, e.g. 19,59 or 19:200:20 "
-                                      "(default: GT readouts for .h5, the middle for .dat)")
+    rc.add_argument("--centers", help="readouts to reconstruct, e.g. 19,59 or 19:200:20 or "
+                                      "30,100:180:40 (default: GT readouts for .h5, the "
+                                      "middle for .dat)")
     rc.add_argument("--context", type=int, default=41, help="readouts given to the method")
     rc.add_argument("--cfa", help=".dat: Bayer pattern of a colour sensor (RGGB, BGGR, GRBG, "
                                   "GBRG; default mono, as a .dat records none)")
@@ -293,17 +294,24 @@ def _train(args) -> int:
 
 
 def _centers(text: str | None, default: list[int]) -> list[int]:
+    """``--centers``: readouts and ``start:stop[:step]`` ranges, comma-separated
+    (``30,100:180:40``), in order, each once."""
     if not text:
         return default
+    centers: list[int] = []
     try:
-        if ":" in text:
-            parts = [int(v) if v else None for v in text.split(":")]
-            centers = list(range(*[p for p in parts if p is not None]))
-        else:
-            centers = [int(v) for v in text.split(",") if v.strip()]
+        for item in (v.strip() for v in text.split(",")):
+            if not item:
+                continue
+            parts = [int(v) for v in item.split(":")]
+            if len(parts) > 3 or (len(parts) == 3 and parts[2] <= 0):
+                raise ValueError
+            centers += list(range(*parts)) if len(parts) > 1 else parts
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--centers {text!r}: expected 19,59 or start:stop:step") \
-            from None
+        raise argparse.ArgumentTypeError(f"--centers {text!r}: expected readouts and "
+                                         "start:stop[:step] ranges, e.g. 19,59 or "
+                                         "30,100:180:40") from None
+    centers = list(dict.fromkeys(centers))
     if not centers:
         raise bad_value("--centers", text, "at least one readout (start:stop:step with start < "
                                             "stop, or a list such as 19,59)")
@@ -319,8 +327,9 @@ def _reconstruct(args) -> int:
     out = Path(args.out)
     made_folder = not out.exists()
     written: list = []
+    used: dict = {}
     try:
-        _reconstruct_into(args, written)
+        _reconstruct_into(args, written, used)
     except BaseException:
         for path in written:
             path.unlink(missing_ok=True)
@@ -328,13 +337,17 @@ def _reconstruct(args) -> int:
             with contextlib.suppress(OSError):
                 out.rmdir()  # only when empty
         raise
+    for name, (window, given) in used.items():
+        print(f"{name}: {window} readouts used (of {given} given)" if window is not None else
+              f"{name}: {given} readouts given (the method does not say how many it uses)")
     print(f"wrote {len(written)} sRGB PNG(s) to {out}")
     return 0
 
 
-def _reconstruct_into(args, written: list) -> None:
+def _reconstruct_into(args, written: list, used: dict) -> None:
     """Reconstruct ``args.input`` (every sequence of a dataset folder), appending
-    each PNG written to ``written``."""
+    each PNG written to ``written`` and each method's (window used, readouts given)
+    to ``used``."""
     from pathlib import Path
 
     from tqdm import tqdm
@@ -380,7 +393,7 @@ def _reconstruct_into(args, written: list) -> None:
             files = [seq.path for seq in ds]
         for file in files:
             _reconstruct_into(argparse.Namespace(**{**vars(args), "input": str(file),
-                                                    "split": None}), written)
+                                                    "split": None}), written, used)
         return
     else:
         from spikesim.cfa import normalize_cfa
@@ -402,7 +415,6 @@ def _reconstruct_into(args, written: list) -> None:
 
     out.mkdir(parents=True, exist_ok=True)
     length = min(args.context or 41, n)
-    used = {}
     bar = tqdm(total=len(centers) * len(methods), desc="reconstruct", disable=args.quiet)
     for c in centers:
         start, _ = window_bounds(n, c, length)
@@ -418,7 +430,7 @@ def _reconstruct_into(args, written: list) -> None:
                     exc.args = (f"{exc} (a .dat records no colour filter: give --cfa RGGB, "
                                 "or the sensor's pattern, for a colour capture)",)
                 raise
-            used[m.name] = m.window_for(length)
+            used[m.name] = (m.window_for(length), length)
             tiles.append(rgb)
             img = linear_to_srgb8(rgb)
             path = out / f"{src.stem}_{_slug(m.name)}_{c:06d}.png"
@@ -431,8 +443,6 @@ def _reconstruct_into(args, written: list) -> None:
             _write_png(path, panel)
             written.append(path)
     bar.close()
-    for name, w in used.items():
-        print(f"{name}: {w if w is not None else '?'} readouts used (of {length} given)")
 
 
 def _slug(name: str) -> str:

@@ -60,6 +60,9 @@ def run(args) -> int:
               f"{est['estimated_bytes'] / 2**20:.1f} MiB and {est['estimated_seconds']:.0f} s "
               f"({est['executor']}, {est['startup_seconds']:.1f} s of it start-up)",
               file=sys.stderr)
+        if args.scheduler:
+            print("(a dry run does not contact the scheduler: the estimate is for a serial "
+                  "build on this machine)", file=sys.stderr)
         if est.get("compile_seconds"):
             print(f"(this dry run also compiled the simulation kernels, "
                   f"{est['compile_seconds']:.0f} s: a one-off after installing or upgrading "

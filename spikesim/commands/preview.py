@@ -77,6 +77,11 @@ def run(args) -> int:
         check_int("--readout", args.readout, 0, n - 1, unit="readout index")
     if args.out.lower().endswith(".gif"):
         readouts = _gif_readouts(n, args.readout, args.frames, args.step, window)
+        if len(readouts) < args.frames:
+            import sys
+
+            print(f"spikesim preview: note: {len(readouts)} of the {args.frames} frames asked "
+                  f"for fit in the stream's {n} readouts (--step, --readout)", file=sys.stderr)
     else:
         readouts = [n // 2 if args.readout is None else args.readout]
     frames = render_frames(src, readouts, args.method, window, args.rate,

@@ -6,7 +6,7 @@ import json
 import warnings
 from pathlib import Path
 
-from spikesim.errors import SpikeSimValueError, bad_value
+from spikesim.errors import SpikeSimError, SpikeSimValueError, bad_value
 from spikesim.workload import RunawayWorkWarning
 
 
@@ -23,7 +23,14 @@ def load_sensor(spec: str, overrides: dict):
     if path.suffix.lower() == ".json":
         if not path.is_file():
             raise SpikeSimFileError(f"no such sensor JSON file: {spec!r}")
-        return ss.Sensor.from_json(path.read_text()).replace(**overrides)
+        try:
+            sensor = ss.Sensor.from_json(path.read_text())
+        except SpikeSimError as exc:
+            raise type(exc)(f"sensor file {spec!r}: {exc}") from None
+        except (UnicodeDecodeError, ValueError) as exc:
+            raise SpikeSimValueError(f"sensor file {spec!r} is not a sensor JSON "
+                                     f"({type(exc).__name__}: {exc})") from None
+        return sensor.replace(**overrides)
     return ss.Sensor.preset(spec, **overrides)
 
 

@@ -384,3 +384,21 @@ def test_reconstruct_refuses_what_it_would_ignore_or_cannot_do(data39, tmp_path,
                  "19", "--out", out, "--quiet"]) == 1
     err = capsys.readouterr().err.strip()
     assert "bad.pt" in err and len(err.splitlines()) == 1 and "weights_only" not in err
+
+
+def test_reconstruct_centers_mix_readouts_and_ranges(data39, tmp_path, capsys):
+    """--centers takes readouts and start:stop[:step] ranges together, each once; a
+    split's sequences report each method's window once."""
+    from spikejdd.cli import _centers
+
+    assert _centers("30,100:180:40,30", []) == [30, 100, 140]
+    assert _centers("5:8", []) == [5, 6, 7]
+    for bad in ("a", "1:2:3:4", "1:9:0"):
+        with pytest.raises(Exception, match="--centers"):
+            _centers(bad, [])
+    out = tmp_path / "f"
+    assert main(["reconstruct", str(data39), "--methods", "tfp+bilinear", "--centers",
+                 "15,19:24:4", "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert text.count("tfp+bilinear: 39 readouts used") == 1
+    assert "wrote 9 sRGB PNG(s)" in text  # 3 sequences × readouts 15, 19, 23

@@ -118,6 +118,11 @@ def test_simulate_takes_a_sensor_json_and_says_what_it_simulated(tmp_path, capsy
     assert main(["simulate", "astronaut", "--readouts", "30", "--sensor", "nope.json",
                  "--out", str(tmp_path / "t.h5")]) == 1
     assert "no such sensor JSON file: 'nope.json'" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"height": 8, "width": 8, "noise": {"type": "physical", "prnu": -1}}')
+    assert main(["simulate", "astronaut", "--readouts", "5", "--sensor", str(bad),
+                 "--out", str(tmp_path / "t.h5")]) == 1
+    assert f"sensor file '{bad}': prnu=-1 is invalid" in capsys.readouterr().err
 
 
 def test_simulate_passes_scene_options_and_names_the_flags(tmp_path, capsys):

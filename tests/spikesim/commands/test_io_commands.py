@@ -137,6 +137,9 @@ def test_preview_of_a_stream_shorter_than_the_default_window(tmp_path, capsys):
     assert img[:, :8].min() == 255 and img[:, 8:].max() == 0
     assert main(base + ["--out", str(tmp_path / "n.png"), "--window", "11"]) == 1
     assert "--window=11" in capsys.readouterr().err and not (tmp_path / "n.png").exists()
+    assert main(base + ["--out", str(tmp_path / "g.gif"), "--frames", "20", "--step", "1",
+                        "--window", "3", "--quiet"]) == 0
+    assert "9 of the 20 frames asked for fit" in capsys.readouterr().err
 
 
 def test_convert_to_sjdd_layout(tmp_path, h5file, capsys):

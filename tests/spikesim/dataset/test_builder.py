@@ -310,6 +310,8 @@ def test_cli_dry_run_prints_json_alone_on_stdout(tmp_path, capsys):
     cap = capsys.readouterr()
     assert json.loads(cap.out)["sequences"] == 2
     assert cap.err.startswith("plan: 2 sequences")
+    assert main(["dataset", str(toml), "--dry-run", "--scheduler", "tcp://127.0.0.1:1"]) == 0
+    assert "does not contact the scheduler" in capsys.readouterr().err
 
 
 def test_files_the_plan_no_longer_makes_are_warned_about(tmp_path):
