@@ -78,11 +78,15 @@ def simulate_sample(seed: int, index: int, crop: int, window: int = 39, clips=()
 
 
 def collate(samples: list[dict]) -> dict:
-    """Stack samples into a batch; numeric ``meta`` fields become tensors, others lists."""
+    """Stack samples into a batch; numeric ``meta`` fields become tensors, others lists.
+
+    Samples of different kinds carry different fields (a clip sample has its playback
+    ``rate``, a procedural one does not): every field of any sample is kept, with None
+    where a sample lacks it (then a list)."""
     out = {k: torch.stack([s[k] for s in samples]) for k in ("spikes", "mask", "gt")}
     meta = {}
-    for key in samples[0]["meta"]:
-        vals = [s["meta"][key] for s in samples]
+    for key in dict.fromkeys(k for s in samples for k in s["meta"]):
+        vals = [s["meta"].get(key) for s in samples]
         meta[key] = (torch.tensor(vals, dtype=torch.float64)
                      if all(isinstance(v, int | float) for v in vals) else vals)
     out["meta"] = meta

@@ -7,11 +7,12 @@ from __future__ import annotations
 import json
 import math
 import time
+from pathlib import Path
 
 from tqdm import tqdm
 
 from spikejdd.train.config import TrainConfig
-from spikesim.errors import SpikeSimTypeError
+from spikesim.errors import SpikeSimTypeError, bad_value
 
 __all__ = ["train"]
 
@@ -35,6 +36,10 @@ def train(cfg: TrainConfig | dict) -> dict:
     if not isinstance(cfg, TrainConfig):
         raise SpikeSimTypeError(f"cfg must be a TrainConfig or dict, got {type(cfg).__name__}")
     cfg.validate()
+    if cfg.resume is None and (Path(cfg.out) / "last.pt").exists():
+        # training from scratch would overwrite the run's checkpoints and log
+        raise bad_value("out", str(cfg.out), "a folder without a run: it holds one (last.pt); "
+                        "resume='auto' (--resume auto) continues it, or choose another folder")
     tr = Trainer(cfg)
     path = tr.resume_path()
     if path:

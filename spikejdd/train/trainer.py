@@ -105,6 +105,20 @@ def _range(values) -> list[float]:
     return [float(min(values)), float(max(values))] if values else []
 
 
+def _check_clips(clips) -> None:
+    """Open every clip before step 1: a bad one would otherwise fail only when the loader
+    first draws a sample from it, which may be hours into a run."""
+    from spikejdd.train.clips import clip_scene
+    from spikesim.errors import SpikeSimError
+
+    for c in clips:
+        try:
+            clip_scene(str(c))
+        except SpikeSimError as exc:
+            raise bad_value("clips", str(c), f"a readable video file or frame folder (--clip): "
+                            f"{exc}") from None
+
+
 class Trainer:
     """One run of ``cfg`` on this process (rank from the ``torchrun`` environment)."""
 
@@ -155,6 +169,7 @@ class Trainer:
         cfg = self.cfg
         self.eval_ds = None
         if cfg.online:
+            _check_clips(cfg.clips)
             self.train_ds = None
             self.steps_per_epoch = cfg.epoch_steps
             self.data_desc = {"train": "online", "generator": "spikejdd.train.online",

@@ -232,3 +232,41 @@ def test_trainer_owns_step_validate_save_and_resume(tmp_path):
     for k, v in tr.model.state_dict().items():
         torch.testing.assert_close(other.model.state_dict()[k], v, rtol=0, atol=0)
     assert other.optimizer.state_dict()["state"].keys() == tr.optimizer.state_dict()["state"].keys()
+
+
+def test_batches_mix_clip_and_procedural_samples():
+    """A clip sample carries its playback rate, a procedural one does not: a batch of
+    both keeps every field (None where a sample lacks it) instead of failing."""
+    from spikejdd.train.online import collate
+
+    def sample(meta):
+        return {"spikes": torch.zeros(3, 4, 4), "mask": torch.zeros(4, 4, 4),
+                "gt": torch.zeros(3, 4, 4), "meta": meta}
+
+    batch = collate([sample({"kind": "clip", "sigma_g": 1.0, "rate": 2.0}),
+                     sample({"kind": "procedural", "sigma_g": 3.0})])
+    assert batch["meta"]["rate"] == [2.0, None]
+    torch.testing.assert_close(batch["meta"]["sigma_g"], torch.tensor([1.0, 3.0],
+                                                                      dtype=torch.float64))
+
+
+def test_bad_clips_and_a_run_folder_are_refused_before_step_one(tmp_path, capsys):
+    """A clip that is no readable video or frame folder is refused up front (not when the
+    loader first draws it), and a folder holding a run is not trained over from scratch;
+    neither writes anything."""
+    (tmp_path / "afile").write_text("not a video")
+    (tmp_path / "empty").mkdir()
+    base = ["train", "--online", "--model", "lite", "--steps", "1", "--crop", "16",
+            "--batch-size", "2", "--threads", "1", "--quiet"]
+    for clip in ("afile", "empty"):
+        out = tmp_path / f"run-{clip}"
+        assert main(base + ["--clip", str(tmp_path / clip), "--out", str(out)]) == 1
+        err = capsys.readouterr().err
+        assert "clips=" in err and "(--clip)" in err and len(err.strip().splitlines()) == 1
+        assert not out.exists()
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "last.pt").write_bytes(b"a run's checkpoint")
+    assert main(base + ["--out", str(run)]) == 1
+    assert "holds one (last.pt)" in capsys.readouterr().err
+    assert (run / "last.pt").read_bytes() == b"a run's checkpoint"
