@@ -365,6 +365,12 @@ def _reconstruct_into(args, written: list, used: dict) -> None:
         raise bad_value("--weights", args.weights, "used with sjdd in --methods (it names "
                                                     "SJDD-Net weights), or leave it out")
     if args.weights:  # --weights names the checkpoint of every sjdd in the list
+        from spikejdd.models.pretrained import resolve_weights
+
+        try:
+            resolve_weights(args.weights)  # a missing file is refused before any work
+        except SpikeSimValueError as exc:
+            raise SpikeSimValueError("--weights" + str(exc)[len("weights"):]) from None
         names = [f"{m}@{args.weights}" if m.lower() == "sjdd" else m for m in names]
     methods = [get_method(m) for m in names]
     device = _configure(args)

@@ -111,6 +111,11 @@ class TrainConfig:
             raise bad_value("crop", self.crop, "an even number of pixels with online data")
         if not 0.0 <= self.clip_fraction <= 1.0:
             raise bad_value("clip_fraction", self.clip_fraction, "a fraction in [0, 1]")
+        if self.online and self.data and not (self.validation == "files"
+                                              and self.eval_data is None):
+            raise bad_value("data", self.data, "None with online (online training simulates "
+                            "every sample; --eval-data DIR with --validation files validates "
+                            "on files)")
         for c in self.clips:
             if not Path(c).exists():
                 raise bad_value("clips", c, "existing video files or frame folders")

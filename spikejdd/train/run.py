@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -54,43 +55,51 @@ def train(cfg: TrainConfig | dict) -> dict:
                disable=not (main and cfg.progress))
     running, seen, t_last = None, 0, time.time()
     batches = tr.batches() if tr.state.step < cfg.steps else iter(())
-    for batch in batches:
-        lv = tr.step(batch)
-        st = tr.state
-        seen += batch["spikes"].shape[0] * tr.world
-        running = lv if running is None else 0.9 * running + 0.1 * lv
-        if main and st.step % cfg.log_every == 0:
-            now = time.time()
-            psnr = -10 * math.log10(max(running, 1e-12))
-            bar.set_postfix(loss=f"{running:.2e}", psnr=f"{psnr:.2f}",
-                            samples_s=f"{seen / max(now - t_last, 1e-9):.1f}",
-                            lr=f"{tr.scheduler.get_last_lr()[0]:.1e}")
-            seen, t_last = 0, now
-        bar.update(1)
-        last = st.step >= cfg.steps or tr.over_time(t_start)
-        if main and (st.step % cfg.eval_every == 0 or last):
-            res = tr.validate()
-            res.update(step=st.step, train_loss=running, minutes=(time.time() - t_start) / 60,
-                       lr=tr.scheduler.get_last_lr()[0])
-            st.history.append(res)
-            _append(out / "log.jsonl", res)
-            bar.write(f"step {st.step}: validation PSNR {res['psnr_linear']:.2f} dB "
-                      f"(train loss {running:.3e})")
-            if res["psnr_linear"] > st.best_psnr:
-                st.best_psnr = res["psnr_linear"]
-                tr.save("best.pt", res, resumable=False)
-        if main and (st.step % cfg.checkpoint_every == 0 or last):
-            tr.save("last.pt")
-        if last:
-            if main:
-                row = tr.bench(st.history[-1])
-                if row is not None:
-                    row["minutes"] = (time.time() - t_start) / 60
-                    _append(out / "bench.jsonl", row)
-                    bar.write(f"step {st.step}: sjdd {row['sjdd_psnr']:.2f} dB, "
-                              f"{row['best_classical']} {row['classical_psnr']:.2f} dB, "
-                              f"delta {row['delta_db']:+.2f} dB")
-            break
+    try:
+        for batch in batches:
+            lv = tr.step(batch)
+            st = tr.state
+            seen += batch["spikes"].shape[0] * tr.world
+            running = lv if running is None else 0.9 * running + 0.1 * lv
+            if main and st.step % cfg.log_every == 0:
+                now = time.time()
+                psnr = -10 * math.log10(max(running, 1e-12))
+                bar.set_postfix(loss=f"{running:.2e}", psnr=f"{psnr:.2f}",
+                                samples_s=f"{seen / max(now - t_last, 1e-9):.1f}",
+                                lr=f"{tr.scheduler.get_last_lr()[0]:.1e}")
+                seen, t_last = 0, now
+            bar.update(1)
+            last = st.step >= cfg.steps or tr.over_time(t_start)
+            if main and (st.step % cfg.eval_every == 0 or last):
+                res = tr.validate()
+                res.update(step=st.step, train_loss=running, minutes=(time.time() - t_start) / 60,
+                           lr=tr.scheduler.get_last_lr()[0])
+                st.history.append(res)
+                _append(out / "log.jsonl", res)
+                bar.write(f"step {st.step}: validation PSNR {res['psnr_linear']:.2f} dB "
+                          f"(train loss {running:.3e})")
+                if res["psnr_linear"] > st.best_psnr:
+                    st.best_psnr = res["psnr_linear"]
+                    tr.save("best.pt", res, resumable=False)
+            if main and (st.step % cfg.checkpoint_every == 0 or last):
+                tr.save("last.pt")
+            if last:
+                if main:
+                    row = tr.bench(st.history[-1])
+                    if row is not None:
+                        row["minutes"] = (time.time() - t_start) / 60
+                        _append(out / "bench.jsonl", row)
+                        bar.write(f"step {st.step}: sjdd {row['sjdd_psnr']:.2f} dB, "
+                                  f"{row['best_classical']} {row['classical_psnr']:.2f} dB, "
+                                  f"delta {row['delta_db']:+.2f} dB")
+                break
+    except BaseException as exc:
+        if main and not isinstance(exc, Exception) and (out / "last.pt").exists():
+            bar.leave = False
+            bar.close()  # a stop (Ctrl-C, SIGTERM): say what is kept and how to go on
+            print(f"kept {out / 'last.pt'} (the last checkpoint before the stop): "
+                  "--resume auto (resume='auto') continues from it", file=sys.stderr)
+        raise
     if hasattr(batches, "close"):
         batches.close()
     bar.close()

@@ -270,3 +270,35 @@ def test_bad_clips_and_a_run_folder_are_refused_before_step_one(tmp_path, capsys
     assert main(base + ["--out", str(run)]) == 1
     assert "holds one (last.pt)" in capsys.readouterr().err
     assert (run / "last.pt").read_bytes() == b"a run's checkpoint"
+
+
+def test_online_training_refuses_data_it_would_ignore(tmp_path, capsys):
+    """--data with --online would be ignored (every sample is simulated) unless it is the
+    validation set: an error that says how to validate on files; a missing --weights of
+    reconstruct is refused before any work."""
+    with pytest.raises(SpikeSimValueError, match="data=.*None with online"):
+        TrainConfig(online=True, data=str(tmp_path)).validate()
+    TrainConfig(online=True, data=str(tmp_path), validation="files").validate()
+    assert main(["reconstruct", str(tmp_path / "x.h5"), "--methods", "sjdd", "--weights",
+                 "nothere.pt", "--out", str(tmp_path / "r")]) == 1
+    assert "--weights='nothere.pt' is invalid" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_stopped_run_says_which_checkpoint_is_kept(tmp_path, capsys, monkeypatch):
+    """Ctrl-C during training keeps the last checkpoint and says how to go on from it."""
+    from spikejdd.train.trainer import Trainer
+
+    real = Trainer.step
+
+    def step_then_stop(self, batch):
+        loss = real(self, batch)
+        if self.state.step == 3:
+            raise KeyboardInterrupt
+        return loss
+
+    monkeypatch.setattr(Trainer, "step", step_then_stop)
+    assert _chunk(tmp_path / "run", 6, ["--checkpoint-every", "2"]) == 130
+    err = capsys.readouterr().err
+    assert f"kept {tmp_path / 'run' / 'last.pt'}" in err and "--resume auto" in err
+    assert load_checkpoint(tmp_path / "run" / "last.pt")["train"]["step"] == 2
