@@ -21,6 +21,7 @@ import sys
 
 from spikesim.cli_guard import (
     OneLineParser,
+    as_option,
     check_cli_numbers,
     debug_requested,
     parse_size,
@@ -370,7 +371,7 @@ def _reconstruct_into(args, written: list, used: dict) -> None:
         try:
             resolve_weights(args.weights)  # a missing file is refused before any work
         except SpikeSimValueError as exc:
-            raise SpikeSimValueError("--weights" + str(exc)[len("weights"):]) from None
+            raise as_option(exc, {"weights": "--weights"}) from None
         names = [f"{m}@{args.weights}" if m.lower() == "sjdd" else m for m in names]
     methods = [get_method(m) for m in names]
     device = _configure(args)

@@ -448,8 +448,8 @@ def _wrap_label(label: str, width: int) -> list[str]:
     shows and no two labels are cut alike."""
     lines, rest = [], label
     while rest and _text_width(rest) > width:
-        fit = max(1, max(n for n in range(1, len(rest) + 1)
-                         if n == 1 or _text_width(rest[:n]) <= width))
+        fit = max(n for n in range(1, len(rest) + 1)
+                  if n == 1 or _text_width(rest[:n]) <= width)  # at least one character
         cut = max(rest.rfind(c, 0, fit) for c in "+:@/") + 1
         cut = cut if cut > 0 else fit
         lines.append(rest[:cut])

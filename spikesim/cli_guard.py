@@ -36,7 +36,8 @@ from collections.abc import Callable
 from spikesim._validate import check_int, check_real, is_int, is_real
 from spikesim.errors import SpikeSimError, bad_value
 
-__all__ = ["MAX_READOUTS", "check_cli_numbers", "OneLineParser", "Terminated", "debug_requested",
+__all__ = ["MAX_READOUTS", "as_option", "check_cli_numbers", "OneLineParser", "Terminated",
+           "debug_requested",
            "install_signal_handlers", "parse_size", "run_guarded"]
 
 EXIT_ERROR = 1
@@ -205,6 +206,19 @@ def _open_bars() -> list:
         return []
     return [b for b in list(getattr(tqdm_module.tqdm, "_instances", ()))
             if not getattr(b, "disable", True)]
+
+
+def as_option(exc: SpikeSimError, names: dict[str, str]) -> SpikeSimError:
+    """``exc`` with the API parameter its message starts with (``weights=...``,
+    ``compression level=...``) replaced by its command-line option in ``names``
+    (``{"weights": "--weights"}``); a value the option leaves out (``expected None``)
+    reads ``expected no --option``.  Other errors are returned unchanged."""
+    text = str(exc)
+    for api, flag in names.items():
+        if text.startswith((api + "=", api + " ")):  # ``speed=…``, ``compression level=…``
+            text = flag + text[len(api):]
+            return type(exc)(text.replace("expected None", f"expected no {flag}"))
+    return exc
 
 
 #: Upper bound of any readout count given on a command line (2**40: ~1.7 years at 20 kHz).

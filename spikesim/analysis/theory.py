@@ -59,6 +59,7 @@ import numpy as np
 
 from spikesim.errors import bad_value
 from spikesim.noise import PaperNoise, PhysicalNoise
+from spikesim.sensor import RESET_MODES
 
 __all__ = [
     "rate_theory",
@@ -79,9 +80,6 @@ __all__ = [
 #: Terms of the Fourier series in :func:`frac_variance`.
 _FOURIER_TERMS = 400
 _M = np.arange(1, _FOURIER_TERMS + 1, dtype=np.float64)[None, :]
-
-
-RESETS = ("modulo", "subtract", "zero")
 
 
 def _numbers(value, name: str) -> np.ndarray:
@@ -133,8 +131,8 @@ def rate_theory(q, reset: str = "modulo", loss: float = 0.0) -> np.ndarray:
     """Mean spikes per readout at charge ``q`` thresholds/readout for a reset
     mode, with charge loss ``loss`` at reset (module notes): modulo and
     subtract ``min(q/(1 + f·q), 1)``, zero ``1/⌈1/q + f⌉``."""
-    if reset not in RESETS:
-        raise bad_value("reset", reset, f"one of {RESETS}")
+    if reset not in RESET_MODES:
+        raise bad_value("reset", reset, f"one of {RESET_MODES}")
     q = _charge(q)
     f = _fraction(loss, "loss")
     if reset == "zero":
@@ -199,10 +197,8 @@ def with_reset_loss(q, v1, loss: float):
     f = _fraction(loss, "loss")
     if f == 0.0:
         return q, v1
-    q_eff = q / (1.0 + f * q)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(q > 0, q_eff / np.where(q > 0, q, 1.0), 1.0)
-    return q_eff, v1 * ratio**3
+    ratio = 1.0 / (1.0 + f * q)  # q_eff / q
+    return q * ratio, v1 * ratio**3
 
 
 def theory_holds(q, v1, noise, near_saturation: bool = True) -> bool:

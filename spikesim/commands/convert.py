@@ -122,14 +122,14 @@ def run(args) -> int:
 
     if not args.dst.lower().endswith((".dat", ".h5", ".hdf5")):
         raise bad_value("DST", args.dst, "a path ending in .dat, .h5 or .hdf5")
+    from spikesim.cli_guard import as_option
     from spikesim.errors import SpikeSimValueError
     from spikesim.io import compression_kwargs
 
     try:
         compression_kwargs(args.compression)
     except SpikeSimValueError as exc:
-        raise bad_value("--compression", args.compression,
-                        str(exc).split("expected ", 1)[-1]) from None
+        raise as_option(exc, {"compression": "--compression"}) from None
     src = source_from_args(args, args.src)
     out = convert(src, args.dst, args.start, args.length, args.crop, out_flip=args.out_flip,
                   compression=args.compression, progress=not args.quiet)

@@ -6,7 +6,7 @@ import json
 import warnings
 from pathlib import Path
 
-from spikesim.errors import SpikeSimError, SpikeSimValueError, bad_value
+from spikesim.errors import SpikeSimError, SpikeSimFileError, SpikeSimValueError, bad_value
 from spikesim.workload import RunawayWorkWarning
 
 
@@ -15,7 +15,6 @@ def load_sensor(spec: str, overrides: dict):
     (:meth:`spikesim.Sensor.to_json`), with ``--set``/``--size`` overrides applied
     (``cfa=mono`` or ``none``: monochrome)."""
     import spikesim as ss
-    from spikesim.errors import SpikeSimFileError
 
     if overrides.get("cfa") in ("mono", "none"):
         overrides = dict(overrides, cfa=None)
@@ -85,7 +84,7 @@ def run(args) -> int:
     import spikesim as ss
     from spikesim import io
     from spikesim._validate import check_int, check_real
-    from spikesim.cli_guard import parse_size
+    from spikesim.cli_guard import as_option, parse_size
     from spikesim.workload import check_free_space, require_reasonable_key_frames
 
     check_int("--readouts", args.readouts, 1, 2**53, unit="readouts")
@@ -111,13 +110,8 @@ def run(args) -> int:
             scene = ss.scenes.procedural(args.scene, motion=args.motion, size=sensor.shape,
                                          speed=args.speed, **scene_options)
         except SpikeSimValueError as exc:  # name the command-line option
-            text = str(exc)
-            for api, flag in (("options=", "--scene-set "), ("speed=", "--speed="),
-                              ("motion=", "--motion="), ("name=", "SCENE=")):
-                if text.startswith(api):  # (None in Python is the option left out)
-                    text = text[len(api):].replace("expected None", f"expected no {flag[:-1]}")
-                    raise SpikeSimValueError(flag + text) from None
-            raise
+            raise as_option(exc, {"options": "--scene-set", "speed": "--speed",
+                                  "motion": "--motion", "name": "SCENE"}) from None
     packed_bytes = args.readouts * sensor.height * ((sensor.width + 7) // 8)
     if not args.force:
         check_free_space(out, packed_bytes * (2 if args.clean_twin else 1))

@@ -107,7 +107,9 @@ def check_executors(workers: int, scheduler, dask_local,
 
 
 def _probe_scheduler(scheduler: str) -> None:
-    """Connect to the Dask scheduler once and close; a clear error when it cannot be reached."""
+    """Connect to the Dask scheduler once and close; a clear error when it cannot be reached.
+    (The build connects again to submit: one more handshake, nothing beside a build, and
+    the client's life stays inside :func:`_run_dask`.)"""
     client = _connect(scheduler)
     with contextlib.suppress(Exception):
         client.close()

@@ -80,3 +80,14 @@ def test_a_number_below_its_range_names_the_bound_not_the_cap(capsys):
         check_cli_numbers(argparse.Namespace(window=0))
     with pytest.raises(SpikeSimValueError, match=r"--window=.* in \[1, 1099511627776\]"):
         check_cli_numbers(argparse.Namespace(window=2**41))
+
+
+def test_as_option_names_the_command_line_flag():
+    from spikesim.cli_guard import as_option
+    from spikesim.errors import SpikeSimFileError, SpikeSimValueError, bad_value
+
+    err = as_option(bad_value("speed", 50.0, "None for scene 'flat'"), {"speed": "--speed"})
+    assert isinstance(err, SpikeSimValueError)
+    assert str(err) == "--speed=50.0 is invalid: expected no --speed for scene 'flat'"
+    other = SpikeSimFileError("no such file")
+    assert as_option(other, {"speed": "--speed"}) is other

@@ -134,7 +134,7 @@ def test_simulate_passes_scene_options_and_names_the_flags(tmp_path, capsys):
     rate = ss.io.open_h5(out).read_window(0, 100).mean()
     assert rate == pytest.approx(0.5 * 0.6, abs=0.011)  # full_scale_rate 0.6
     capsys.readouterr()
-    for argv, needle in ((["flat", "--scene-set", "levle=1"], "--scene-set ['levle']"),
+    for argv, needle in ((["flat", "--scene-set", "levle=1"], "--scene-set=['levle']"),
                          (["flat", "--speed", "50"], "--speed=50.0"),
                          (["astronaut", "--motion", "wobble"], "--motion='wobble'")):
         assert main(["simulate", *argv, "--size", "8x8", "--readouts", "10", "--out",
