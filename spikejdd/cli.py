@@ -27,7 +27,7 @@ from spikesim.cli_guard import (
     parse_size,
     run_guarded,
 )
-from spikesim.errors import SpikeSimValueError, bad_value
+from spikesim.errors import SpikeSimError, SpikeSimValueError, bad_value
 
 __all__ = ["main", "build_parser"]
 
@@ -225,6 +225,13 @@ def _configure(args) -> str:
     return device
 
 
+#: ``train`` flags that set the TrainConfig field of their name.
+_TRAIN_FIELDS = ("data", "out", "eval_data", "model", "steps", "batch_size", "crop", "lr",
+                 "lr_step", "gamma", "noise_weight", "eval_every", "eval_frames",
+                 "checkpoint_every", "seed", "workers", "time_limit_min", "device", "resume",
+                 "init", "threads", "lr_step_epochs", "epoch_steps", "validation")
+
+
 def _train(args) -> int:
     import json
     from pathlib import Path
@@ -242,10 +249,7 @@ def _train(args) -> int:
                 from None
         if not isinstance(cfg, dict):
             raise bad_value("--config", args.config, "a JSON object of TrainConfig keys")
-    for name in ("data", "out", "eval_data", "model", "steps", "batch_size", "crop", "lr",
-                 "lr_step", "gamma", "noise_weight", "eval_every", "eval_frames",
-                 "checkpoint_every", "seed", "workers", "time_limit_min", "device", "resume",
-                 "init", "threads", "lr_step_epochs", "epoch_steps", "validation"):
+    for name in _TRAIN_FIELDS:
         v = getattr(args, name, None)
         if v is not None:
             cfg[name] = v
@@ -286,10 +290,22 @@ def _train(args) -> int:
     for key, split in (("data", args.split), ("eval_data", args.eval_split)):
         if cfg.get(key) and (split or Path(cfg[key]).exists()):  # a dataset root -> its split
             cfg[key] = str(resolve_dataset(cfg[key], split))
-    summary = train(TrainConfig.from_dict(cfg))
+    flags = {name: "--" + name.replace("_", "-") for name in _TRAIN_FIELDS
+             if getattr(args, name, None) is not None}
+    if args.init:  # the weights resolver names its parameter ``weights``
+        flags["weights"] = "--init"
+    if args.clips:
+        flags["clips"] = "--clip"
+    try:
+        summary = train(TrainConfig.from_dict(cfg))
+    except SpikeSimError as exc:  # name the flag the user gave, not the config field
+        raise as_option(exc, flags) from None
     if os.environ.get("RANK", "0") != "0":
         return 0
-    print(f"trained {summary['steps_done']} steps in {summary['minutes']:.1f} min; "
+    done, first = summary["steps_done"], summary["resumed_at_step"]
+    this_call = (f" ({done - first} after resuming at step {first}, "
+                 f"{summary['minutes_this_call']:.1f} min)" if first else "")
+    print(f"trained {done} steps in {summary['minutes']:.1f} min{this_call}; "
           f"best eval PSNR {summary['best_psnr']:.2f} dB; run folder {cfg.get('out', 'runs/sjdd')}")
     return 0
 

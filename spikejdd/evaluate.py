@@ -228,7 +228,7 @@ def run(frames: list[Frame], methods: list[str], repeats: int = 3, progress: boo
         except SpikeSimError as exc:  # the method's failure (its own, or its output's)
             if not keep_going or len(fns) == 1:
                 raise
-            failed[m] = str(exc).replace(" (--debug shows the traceback)", "")
+            failed[m] = str(exc)
             if len(failed) == len(fns):
                 raise SpikeSimError("every method failed: " + "; ".join(failed.values())) from exc
             if outputs is not None:

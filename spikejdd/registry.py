@@ -79,6 +79,10 @@ def _accepted(fn: Callable) -> tuple[set[str], bool]:
 class MethodError(SpikeSimError, RuntimeError):
     """A reconstruction method raised while it ran (its own failure, named)."""
 
+    #: The command line's one-line error says that ``--debug`` shows the
+    #: method's traceback (:func:`spikesim.cli_guard.run_guarded`).
+    traceback_helps = True
+
 
 @dataclass(frozen=True)
 class Method:
@@ -111,8 +115,8 @@ class Method:
                 exc.args = (f"method {self.name!r}: {exc}",)
             raise
         except Exception as exc:  # the method's own failure, not the harness's
-            raise MethodError(f"method {self.name!r} failed: {type(exc).__name__}: {exc} "
-                              "(--debug shows the traceback)") from exc
+            raise MethodError(f"method {self.name!r} failed: {type(exc).__name__}: {exc}") \
+                from exc
 
     def window_for(self, n_readouts: int) -> int | None:
         """Readouts the method uses on a stream of ``n_readouts`` (None: it does not say)."""

@@ -106,7 +106,9 @@ def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False)
     """Run ``call()`` and map what it raises to one stderr line and an exit code.
 
     ``label`` prefixes every line (``"spikesim simulate"``).  With ``debug``
-    nothing is caught, so Python prints the full traceback.
+    nothing is caught, so Python prints the full traceback.  An error whose
+    class sets ``traceback_helps`` (a user's method failing inside it) says
+    that ``--debug`` shows that traceback.
     """
     install_signal_handlers()
     if debug:
@@ -122,7 +124,8 @@ def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False)
         _quiet_stdout()
         return EXIT_PIPE
     except SpikeSimError as exc:
-        _say(label, f"error: {exc}")
+        hint = " (--debug shows the traceback)" if getattr(exc, "traceback_helps", False) else ""
+        _say(label, f"error: {exc}{hint}")
         return EXIT_ERROR
     except argparse.ArgumentTypeError as exc:
         _say(label, f"error: {exc}")

@@ -99,6 +99,8 @@ class TrainConfig:
     def validate(self) -> None:
         if not self.data and not self.online:
             raise bad_value("data", self.data, "a spikesim HDF5 file or folder (or online=True)")
+        if Path(self.out).exists() and not Path(self.out).is_dir():
+            raise bad_value("out", str(self.out), "a run folder, not an existing file")
         for name in ("steps", "batch_size", "crop", "eval_every", "checkpoint_every",
                      "log_every", "eval_frames", "lr_step_epochs", "epoch_steps"):
             v = getattr(self, name)
@@ -107,8 +109,6 @@ class TrainConfig:
         if self.lr_step is not None and (isinstance(self.lr_step, bool) or
                                          not isinstance(self.lr_step, int) or self.lr_step < 1):
             raise bad_value("lr_step", self.lr_step, "an integer >= 1 (or unset: 50 epochs)")
-        if self.online and self.crop % 2:
-            raise bad_value("crop", self.crop, "an even number of pixels with online data")
         if not 0.0 <= self.clip_fraction <= 1.0:
             raise bad_value("clip_fraction", self.clip_fraction, "a fraction in [0, 1]")
         if self.online and self.data and not (self.validation == "files"

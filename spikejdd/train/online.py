@@ -99,7 +99,8 @@ class OnlineSpikeDataset(IterableDataset):
     Parameters
     ----------
     batch_size, crop, window : int
-        Samples per batch, crop side (pixels, even), readouts per sample.
+        Samples per batch, crop side (pixels, ≥ 2; odd sizes too, as with file data),
+        readouts per sample.
     seed : int
         The run's seed.
     start_step : int
@@ -117,8 +118,6 @@ class OnlineSpikeDataset(IterableDataset):
                             ("window", window, 1), ("start_step", start_step, 0)):
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise bad_value(name, v, f"an integer >= {lo}")
-        if crop % 2:
-            raise bad_value("crop", crop, "an even number of pixels (whole Bayer tiles)")
         if stop_step is not None and stop_step < start_step:
             raise bad_value("stop_step", stop_step, f"None or >= start_step ({start_step})")
         self.batch_size, self.crop, self.window = batch_size, crop, window

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -23,8 +24,20 @@ def _append(path, row: dict) -> None:
         fh.write(json.dumps(row) + "\n")
 
 
+def _first_missing(path: Path) -> Path | None:
+    """The outermost folder of ``path`` that does not exist yet (None: it exists)."""
+    missing = None
+    for p in (path, *path.parents):
+        if p.exists():
+            return missing
+        missing = p
+    return missing
+
+
 def train(cfg: TrainConfig | dict) -> dict:
-    """Run (or resume) a training run; returns the final summary (also in ``run.json``).
+    """Run (or resume) a training run; returns the final summary (also in ``run.json``):
+    ``steps_done`` and ``minutes`` count the whole run, ``resumed_at_step`` and
+    ``minutes_this_call`` this call.
 
     Writes under ``cfg.out``: ``run.json``, ``log.jsonl`` (one validation per
     line), ``bench.jsonl`` (one benchmark row per chunk, sweep validation
@@ -41,19 +54,30 @@ def train(cfg: TrainConfig | dict) -> dict:
         # training from scratch would overwrite the run's checkpoints and log
         raise bad_value("out", str(cfg.out), "a folder without a run: it holds one (last.pt); "
                         "resume='auto' (--resume auto) continues it, or choose another folder")
-    tr = Trainer(cfg)
-    path = tr.resume_path()
-    if path:
-        tr.resume(path)
-    elif cfg.init:
-        tr.initialise(cfg.init)
+    made = _first_missing(Path(cfg.out))
+    try:
+        tr = Trainer(cfg)
+        path = tr.resume_path()
+        if path:
+            tr.resume(path)
+        elif cfg.init:
+            tr.initialise(cfg.init)
+    except BaseException:  # a refused start (weights of another model…) leaves no folder
+        if made is not None and made.is_dir() and not any(p.is_file() for p in made.rglob("*")):
+            shutil.rmtree(made)
+        raise
     out, main = tr.out, tr.main
     if main:
         (out / "run.json").write_text(json.dumps(tr.run_info, indent=1, default=str))
     t_start = time.time()
+    start_step, start_minutes = tr.state.step, tr.state.minutes
+
+    def minutes() -> float:  # the run's training time, over every call
+        return start_minutes + (time.time() - t_start) / 60
+
     bar = tqdm(total=cfg.steps, initial=tr.state.step, desc="train",
                disable=not (main and cfg.progress))
-    running, seen, t_last = None, 0, time.time()
+    running, seen, t_last = tr.state.running_loss, 0, time.time()
     batches = tr.batches() if tr.state.step < cfg.steps else iter(())
     try:
         for batch in batches:
@@ -61,6 +85,7 @@ def train(cfg: TrainConfig | dict) -> dict:
             st = tr.state
             seen += batch["spikes"].shape[0] * tr.world
             running = lv if running is None else 0.9 * running + 0.1 * lv
+            st.running_loss = running
             if main and st.step % cfg.log_every == 0:
                 now = time.time()
                 psnr = -10 * math.log10(max(running, 1e-12))
@@ -72,7 +97,7 @@ def train(cfg: TrainConfig | dict) -> dict:
             last = st.step >= cfg.steps or tr.over_time(t_start)
             if main and (st.step % cfg.eval_every == 0 or last):
                 res = tr.validate()
-                res.update(step=st.step, train_loss=running, minutes=(time.time() - t_start) / 60,
+                res.update(step=st.step, train_loss=running, minutes=minutes(),
                            lr=tr.scheduler.get_last_lr()[0])
                 st.history.append(res)
                 _append(out / "log.jsonl", res)
@@ -80,14 +105,16 @@ def train(cfg: TrainConfig | dict) -> dict:
                           f"(train loss {running:.3e})")
                 if res["psnr_linear"] > st.best_psnr:
                     st.best_psnr = res["psnr_linear"]
+                    st.minutes = minutes()
                     tr.save("best.pt", res, resumable=False)
             if main and (st.step % cfg.checkpoint_every == 0 or last):
+                st.minutes = minutes()
                 tr.save("last.pt")
             if last:
                 if main:
                     row = tr.bench(st.history[-1])
                     if row is not None:
-                        row["minutes"] = (time.time() - t_start) / 60
+                        row["minutes"] = minutes()
                         _append(out / "bench.jsonl", row)
                         bar.write(f"step {st.step}: sjdd {row['sjdd_psnr']:.2f} dB, "
                                   f"{row['best_classical']} {row['classical_psnr']:.2f} dB, "
@@ -105,7 +132,8 @@ def train(cfg: TrainConfig | dict) -> dict:
     bar.close()
     st = tr.state
     summary = dict(tr.run_info, steps_done=st.step, best_psnr=st.best_psnr, history=st.history,
-                   minutes=(time.time() - t_start) / 60)
+                   minutes=minutes(), resumed_at_step=start_step,
+                   minutes_this_call=(time.time() - t_start) / 60)
     if main:
         (out / "run.json").write_text(json.dumps(summary, indent=1, default=str))
     tr.close()

@@ -11,14 +11,19 @@ __all__ = ["TrainState"]
 
 @dataclass
 class TrainState:
-    """Steps done, the epoch and steps into it (file data), the best validation PSNR (dB)
-    and the validation history (one dict per validation)."""
+    """Steps done, the epoch and steps into it (file data), the best validation PSNR (dB),
+    the validation history (one dict per validation), the training time so far
+    (minutes, over every call of a run in chunks) and the running training loss (the
+    moving average the log reports), so a resumed run logs what an uninterrupted one
+    would."""
 
     step: int = 0
     epoch: int = 0
     in_epoch: int = 0
     best_psnr: float = -math.inf
     history: list = field(default_factory=list)
+    minutes: float = 0.0
+    running_loss: float | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -30,4 +35,5 @@ class TrainState:
         return cls(step=int(tr.get("step", 0)), epoch=int(tr.get("epoch", 0)),
                    in_epoch=int(tr.get("in_epoch", 0)),
                    best_psnr=float(tr.get("best_psnr", -math.inf)),
-                   history=list(tr.get("history", [])))
+                   history=list(tr.get("history", [])), minutes=float(tr.get("minutes", 0.0)),
+                   running_loss=tr.get("running_loss"))

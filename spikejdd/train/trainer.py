@@ -115,8 +115,16 @@ def _check_clips(clips) -> None:
         try:
             clip_scene(str(c))
         except SpikeSimError as exc:
-            raise bad_value("clips", str(c), f"a readable video file or frame folder (--clip): "
-                            f"{exc}") from None
+            raise bad_value("clips", str(c), f"a readable video file or frame folder: {exc}") \
+                from None
+
+
+def config_difference(saved: dict, wanted: dict) -> str:
+    """The model fields where a checkpoint's configuration ``saved`` differs from
+    this run's ``wanted``: ``"it has width=32 where this run has 64, …"``."""
+    keys = [k for k in sorted(set(saved) | set(wanted)) if saved.get(k) != wanted.get(k)]
+    return "it has " + ", ".join(f"{k}={saved.get(k)!r} where this run has {wanted.get(k)!r}"
+                                 for k in keys)
 
 
 class Trainer:
@@ -322,7 +330,9 @@ class Trainer:
         """Restore weights, optimizer, scheduler and state from checkpoint ``path``."""
         blob = load_checkpoint(path)
         if blob["config"] != self.mcfg.to_dict():
-            raise bad_value("resume", str(path), "a checkpoint of the same model configuration")
+            raise bad_value("resume", str(path), "a checkpoint of the same model configuration "
+                            f"({config_difference(blob['config'], self.mcfg.to_dict())}: give "
+                            "the --model and --set it was trained with)")
         self.model.load_state_dict(blob["state_dict"])
         tr = blob.get("train") or {}
         if "optimizer" in tr:
@@ -337,7 +347,8 @@ class Trainer:
         blob = load_checkpoint(path)
         if blob["config"] != self.mcfg.to_dict():
             raise bad_value("init", str(weights), "weights of the same model configuration "
-                            f"as --model {self.cfg.model} (and its --set overrides)")
+                            f"as --model {self.cfg.model} (and its --set overrides; "
+                            f"{config_difference(blob['config'], self.mcfg.to_dict())})")
         self.model.load_state_dict(blob["state_dict"])
 
     def resume_path(self) -> str | None:

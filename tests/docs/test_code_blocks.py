@@ -18,6 +18,9 @@ Conventions of the Markdown files (kept invisible to readers):
 * ``<!-- not-run: reason -->`` right before a block skips it; the reason is
   required (commands meant for other hosts, or for the whole test run itself).
 
+A Python block may not warn (a warning of spikesim's or spikejdd's, or one
+raised by the example's own lines): a reader would see it under the example.
+
 Blocks in other languages (``toml``, ``text``, none) are prose and not run,
 unless a ``doc-file`` comment names them.
 """
@@ -29,6 +32,7 @@ import re
 import subprocess
 import sys
 import textwrap
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -107,11 +111,20 @@ def _shell_env() -> dict[str, str]:
     return env
 
 
+def _is_ours(caught: warnings.WarningMessage, rel: Path) -> bool:
+    """A warning that spikesim or spikejdd gives (a reader would see it under
+    the example): its class is theirs, or it comes from their code or the
+    example's own lines (``rel``); third-party deprecations are left alone."""
+    module = caught.category.__module__.split(".")[0]
+    return (module in ("spikesim", "spikejdd") or caught.filename.startswith(str(rel))
+            or ROOT in Path(caught.filename).resolve().parents)
+
+
 def run_file(doc: Path, workdir: Path) -> int:
     """Run every block of ``doc`` in ``workdir``; returns how many ran."""
     namespace: dict = {"__name__": "__doc_example__", **doc_fixtures.NAMES}
     ran = 0
-    rel = doc.relative_to(ROOT)
+    rel = doc.relative_to(ROOT) if ROOT in doc.parents else Path(doc.name)
     for block in parse_blocks(doc.read_text(encoding="utf-8")):
         where = f"{rel}:{block.line}"
         if block.directive == "not-run:":
@@ -125,7 +138,12 @@ def run_file(doc: Path, workdir: Path) -> int:
         if block.directive == "doc-setup":
             exec(compile(textwrap.dedent(block.argument), f"{where} (setup)", "exec"), namespace)
         if block.lang in RUN_PYTHON:
-            exec(compile(block.code, where, "exec"), namespace)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                exec(compile(block.code, where, "exec"), namespace)
+            ours = [w for w in caught if _is_ours(w, rel)]
+            assert not ours, f"{where}: the example warns: " + "; ".join(
+                f"{w.category.__name__}: {w.message}" for w in ours)
         else:
             script = "\n".join(re.sub(r"^\$ ", "", ln) for ln in block.code.splitlines())
             proc = subprocess.run(["bash", "-c", "set -euo pipefail\n" + script], cwd=workdir,
@@ -181,3 +199,13 @@ def test_the_parser_sees_directives_indents_and_prose_between():
     assert blocks[2].argument.strip() == "a.toml"
     assert blocks[4].code == "echo hi\n"
     assert blocks[0].line == 3
+
+
+def test_an_example_that_warns_fails(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    doc = tmp_path / "warns.md"
+    doc.write_text("```python\nimport warnings\nx = 1\n```\n\n"
+                   "```python\nwarnings.warn('the video ends')\n```\n", encoding="utf-8")
+    with pytest.raises(AssertionError,
+                       match=r"warns.md:7: the example warns: UserWarning: the video ends"):
+        run_file(doc, tmp_path)

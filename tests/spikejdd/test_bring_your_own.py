@@ -13,7 +13,7 @@ import pytest
 import spikejdd as sj
 import spikesim as ss
 from spikejdd.cli import main
-from spikejdd.registry import METHODS, Registry
+from spikejdd.registry import METHODS, MethodError, Registry
 from spikesim.errors import SpikeSimValueError
 from spikesim.io import write_h5
 
@@ -306,7 +306,17 @@ def test_a_failing_user_method_is_named_not_reported_as_a_bug(data39, tmp_path, 
         assert main(args + ["--methods", f"tfp+bilinear,failing_meth:{fn}"]) == 1  # not 70
         err = capsys.readouterr().err.strip()
         assert f"method 'failing_meth:{fn}' failed" in err and words in err, err
-        assert len(err.splitlines()) == 1
+        assert len(err.splitlines()) == 1 and "--debug" in err
+    # the library's error names no command-line flag; the command line's adds the hint once
+    with pytest.raises(MethodError, match="boom inside my method") as caught:
+        sj.reconstruct(np.zeros((9, 16, 16), np.uint8), cfa="RGGB", method="failing_meth:boom")
+    assert "--debug" not in str(caught.value)
+    seq = str(data39 / "fan.h5")
+    assert main(["reconstruct", seq, "--methods", "failing_meth:boom", "--out",
+                 str(tmp_path / "frames"), "--quiet"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("boom inside my method (--debug shows the traceback)"), err
+    assert err.count("--debug") == 1
     sys.modules.pop("failing_meth", None)
 
 

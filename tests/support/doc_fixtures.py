@@ -19,19 +19,32 @@ PEER_DAT = Path(__file__).resolve().parents[3] / "shared" / "fixtures" / "peer-r
     "203_part2_key_id151.dat"
 
 
+#: Frames larger than this (pixels on the long side) are rendered at this size
+#: and enlarged, so a 100-frame 720×1280 folder takes seconds, not minutes.
+RENDER_MAX = 320
+
+
 def _frames(n_frames: int, size: tuple[int, int], fps: float) -> list[np.ndarray]:
     """8-bit BGR frames of a panning photograph, frame i at t = i / fps."""
-    scene = ss.scenes.procedural("astronaut", motion="pan", size=size, speed=60.0 * fps / 24)
+    h, w = size
+    scale = min(1.0, RENDER_MAX / max(h, w))
+    small = (max(1, round(h * scale)), max(1, round(w * scale)))
+    scene = ss.scenes.procedural("astronaut", motion="pan", size=small,
+                                 speed=60.0 * fps / 24 * scale)
     out = []
     for i in range(n_frames):
         rgb = linear_to_srgb(np.clip(scene.radiance(i / fps), 0, 1))
-        out.append(np.ascontiguousarray((rgb[..., ::-1] * 255 + 0.5).astype(np.uint8)))
+        frame = (rgb[..., ::-1] * 255 + 0.5).astype(np.uint8)
+        if small != (h, w):
+            frame = cv2.resize(frame, (w, h), interpolation=cv2.INTER_LINEAR)
+        out.append(np.ascontiguousarray(frame))
     return out
 
 
-def make_reds(root: str = "REDS/train_sharp", sequence: str = "000", n_frames: int = 8,
+def make_reds(root: str = "REDS/train_sharp", sequence: str = "000", n_frames: int = 100,
               size: tuple[int, int] = (180, 320), fps: float = 120.0) -> Path:
-    """A REDS-shaped folder ``root/sequence/%08d.png``."""
+    """A REDS-shaped folder ``root/sequence/%08d.png`` (REDS sequences have 100
+    frames at 120 fps)."""
     folder = Path(root) / sequence
     folder.mkdir(parents=True, exist_ok=True)
     for i, frame in enumerate(_frames(n_frames, size, fps)):

@@ -142,7 +142,8 @@ class Sequence:
         try:
             raw = ds[start:start + length, top:top + h, b0:b1]
         except OSError as exc:
-            raise _read_error(self.path, exc) from exc
+            part = f"{ds.name.lstrip('/')} (readouts {start}–{start + length - 1})"
+            raise _read_error(self.path, exc, part) from exc
         if left % 8 == 0 and b0 == 0 and b1 == ds.shape[2] and packed and w == self.width:
             return raw
         return crop_packed(raw, left % 8, w, unpack=not packed)
@@ -166,13 +167,14 @@ class Sequence:
             return _finite_gt(self.path, self._h5()["gt"][int(k), top:top + h,
                                                             left:left + w, :])
         except OSError as exc:
-            raise _read_error(self.path, exc) from exc
+            part = f"ground truth (frame {int(k)}, readout {int(self.gt_index[k])})"
+            raise _read_error(self.path, exc, part) from exc
 
     def read_all_gt(self) -> np.ndarray:
         try:
             return _finite_gt(self.path, self._h5()["gt"][:])
         except OSError as exc:
-            raise _read_error(self.path, exc) from exc
+            raise _read_error(self.path, exc, "ground truth") from exc
 
     def to_stream(self):
         """Load everything into a ``SpikeStream`` (needs ``spikesim.simulate``)."""
@@ -196,8 +198,11 @@ def _finite_gt(path: Path, gt: np.ndarray) -> np.ndarray:
     return gt
 
 
-def _read_error(path: Path, exc: Exception) -> SpikeSimFormatError:
+def _read_error(path: Path, exc: Exception, part: str = "") -> SpikeSimFormatError:
+    """The error for a failed read of ``path``; ``part`` names what was read
+    (``"spikes (readouts 0–255)"``), so the damage can be placed."""
     text = str(exc)
+    where = f" in its {part}" if part else ""
     low = text.lower()
     if "not registered" in low or "plugin" in low or "not available" in low:
         hint = "" if have_hdf5plugin() else " (install hdf5plugin: pip install 'spikesim[fast]')"
@@ -207,11 +212,12 @@ def _read_error(path: Path, exc: Exception) -> SpikeSimFormatError:
         )
     if "fletcher" in low or "checksum" in low:
         return SpikeSimFormatError(
-            f"{str(path)!r}: damaged data (a chunk fails its checksum): restore or regenerate "
-            "the file"
+            f"{str(path)!r}: damaged data{where} (a chunk fails its checksum): restore or "
+            "regenerate the file"
         )
     return SpikeSimFormatError(
-        f"{str(path)!r}: damaged data, cannot be read ({text}): restore or regenerate the file"
+        f"{str(path)!r}: damaged data{where}, cannot be read ({text}): restore or regenerate "
+        "the file"
     )
 
 

@@ -69,7 +69,13 @@ def test_resume_reproduces_an_uninterrupted_run(tiny_data, tmp_path):
     part = load_checkpoint(tmp_path / "split" / "last.pt")
     assert part["train"]["step"] == 3
     resumed = train(_cfg(root, tmp_path / "split", resume="auto"))
-    assert resumed["steps_done"] == 7
+    assert resumed["steps_done"] == 7 and resumed["resumed_at_step"] == 3
+    # the log goes on as if uninterrupted: the same running loss, time counted over both calls
+    log = [json.loads(x) for x in (tmp_path / "split" / "log.jsonl").read_text().splitlines()]
+    log_full = [json.loads(x) for x in (tmp_path / "full" / "log.jsonl").read_text().splitlines()]
+    assert [r["step"] for r in log] == [3, 7]
+    assert log[-1]["train_loss"] == log_full[-1]["train_loss"]
+    assert resumed["minutes"] >= log[0]["minutes"] + resumed["minutes_this_call"]
     a = load_checkpoint(tmp_path / "full" / "last.pt")["state_dict"]
     b = load_checkpoint(tmp_path / "split" / "last.pt")["state_dict"]
     assert a.keys() == b.keys()
@@ -86,7 +92,8 @@ def test_resume_with_another_model_is_refused(tiny_data, tmp_path):
     root, _ = tiny_data
     train(_cfg(root, tmp_path / "r", steps=1))
     other = dict(TINY.to_dict(), stages=2)
-    with pytest.raises(SpikeSimValueError, match="same model configuration"):
+    with pytest.raises(SpikeSimValueError, match=r"same model configuration \(it has "
+                       r"stages=\d+ where this run has 2: give the --model and --set"):
         train(_cfg(root, tmp_path / "r", resume="auto", model_overrides=other))
 
 

@@ -110,7 +110,11 @@ def test_loader_stream_is_the_same_for_any_worker_count_and_resumes():
             torch.testing.assert_close(x[k], ref[k], rtol=0, atol=0)
         assert x["meta"]["index"].tolist() == [2 * step, 2 * step + 1]
     with pytest.raises(SpikeSimValueError, match="crop"):
-        OnlineSpikeDataset(batch_size=2, crop=7)
+        OnlineSpikeDataset(batch_size=2, crop=1)
+    # odd crops, as file data allows: the mask follows each sample's pattern
+    odd = OnlineSpikeDataset(batch_size=2, crop=7, window=9, seed=4).batch(0)
+    assert odd["spikes"].shape == (2, 9, 7, 7) and odd["mask"].shape == (2, 4, 7, 7)
+    assert torch.all(odd["mask"].sum(dim=1) == 1)
 
 
 def test_validation_sweep_has_static_and_slow_scenes_on_held_out_pictures():
@@ -133,8 +137,9 @@ def test_default_schedule_is_the_authors_scaled_to_steps():
     assert cfg.lr_step_for(37) == 50 * 37
     assert TrainConfig(online=True, lr_step=7).lr_step_for(240) == 7
     assert cfg.validation_kind() == "sweep" and TrainConfig(data="x").validation_kind() == "files"
+    TrainConfig(online=True, crop=9).validate()  # odd crops, as with file data
     with pytest.raises(SpikeSimValueError, match="crop"):
-        TrainConfig(online=True, crop=9).validate()
+        TrainConfig(online=True, crop=0).validate()
     with pytest.raises(SpikeSimValueError, match="val_size"):
         TrainConfig(online=True, val_size=[7, 8]).validate()
 
@@ -262,8 +267,17 @@ def test_bad_clips_and_a_run_folder_are_refused_before_step_one(tmp_path, capsys
         out = tmp_path / f"run-{clip}"
         assert main(base + ["--clip", str(tmp_path / clip), "--out", str(out)]) == 1
         err = capsys.readouterr().err
-        assert "clips=" in err and "(--clip)" in err and len(err.strip().splitlines()) == 1
+        assert "--clip=" in err and len(err.strip().splitlines()) == 1
         assert not out.exists()
+    # errors name the flags given, not the config fields behind them
+    (tmp_path / "afile.pt").write_text("not a folder")
+    for extra, flag in ((["--out", str(tmp_path / "afile.pt")], "--out="),
+                        (["--crop", "0", "--out", str(tmp_path / "r0")], "--crop=0"),
+                        (["--init", "nothere.pt", "--out", str(tmp_path / "r1")], "--init=")):
+        assert main(base + extra) == 1  # (the last --crop given counts)
+        err = capsys.readouterr().err
+        assert f"error: {flag}" in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "r0").exists() and not (tmp_path / "r1").exists()
     run = tmp_path / "run"
     run.mkdir()
     (run / "last.pt").write_bytes(b"a run's checkpoint")

@@ -246,17 +246,20 @@ def test_truncated_random_and_empty_files(tmp_path, make_stream):
         open_h5(tmp_path / "missing.h5")
 
 
-def test_corrupt_chunk_data_is_a_clear_error(tmp_path, make_stream):
+@pytest.mark.parametrize("dataset, part", [("spikes", r"in its spikes \(readouts 0–63\)"),
+                                           ("gt", r"in its ground truth \(frame 0, readout")])
+def test_corrupt_chunk_data_is_a_clear_error_that_places_it(tmp_path, make_stream, dataset,
+                                                             part):
     path = write_h5(tmp_path / "z.h5", make_stream(n=64, height=16, width=24),
                     compression="gzip")
     with h5py.File(path) as f:
-        offset = f["spikes"].id.get_chunk_info(0).byte_offset
+        offset = f[dataset].id.get_chunk_info(0).byte_offset
     raw = bytearray(path.read_bytes())
     raw[offset:offset + 64] = b"\xff" * 64
     path.write_bytes(bytes(raw))
     seq = open_h5(path)
-    with pytest.raises(SpikeSimFormatError, match="cannot be read"):
-        seq.read_window(0, 64)
+    with pytest.raises(SpikeSimFormatError, match=f"damaged data {part}"):
+        seq.read_window(0, 64) if dataset == "spikes" else seq.read_gt(0)
 
 
 def test_interrupted_write_leaves_no_file(tmp_path, make_stream, make_run):
