@@ -239,16 +239,17 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
         :func:`spikesim.analysis.regions.detect_regions`.
     flat_levels : sequence of float, optional
         Radiance of each flat region in scene units (1 = full scale); without
-        them the brightest region is full scale.
+        them the brightest region is full scale, unless ``full_scale_rate``
+        (a :class:`CalibrationConfig` field) gives the rate at radiance 1.
     config : CalibrationConfig, optional
         Fit assumptions and check settings; ``**options`` (its field names:
         ``detect``, ``electrons_per_threshold``, ``temporal_threshold_noise``,
-        ``mismatch_split``, ``fit_charge_noise``, ``max_readouts``, ``check``,
+        ``mismatch_split``, ``full_scale_rate``, ``fit_charge_noise``, ``max_readouts``, ``check``,
         ``check_readouts``, ``check_seed``, ``min_pixels``) replace its fields.
     option_names : dict, optional
-        How errors name ``flat_levels`` and ``reset`` (the CLI passes its flags,
-        ``{"flat_levels": "--levels", "reset": "--reset"}``); default: the
-        keyword names.
+        How errors name ``flat_levels``, ``reset`` and ``full_scale_rate`` (the
+        CLI passes its flags, ``{"flat_levels": "--levels", "reset": "--reset",
+        "full_scale_rate": "--full-scale-rate"}``); default: the keyword names.
     """
     cfg = config_with(config, options)
     cap = as_capture(capture, height=height, width=width, flip=flip, cfa=cfa, clock_hz=clock_hz)
@@ -263,6 +264,11 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
     dark, flats, detected = _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress,
                                      region_notes)
     levels = _levels(flat_levels, flats, names["flat_levels"])
+    if levels is not None and cfg.full_scale_rate is not None:
+        raise bad_value(names.get("full_scale_rate", "full_scale_rate"), cfg.full_scale_rate,
+                        f"None when {names['flat_levels']} are given (the radiances already "
+                        "set the scale)")
+    scale_known = levels is not None or cfg.full_scale_rate is not None
     mom = pixel_intervals(cap, 0, n, progress=progress)
     params, diag, lv, hot = fit_parameters(
         rate, mom, n, dark, flats, levels, cfg,
@@ -275,12 +281,12 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
 
         fit = compare_resimulations(
             cap, {"calibrated": sensor,
-                  "defaults": default_sensor_like(sensor, scale_known=levels is not None)},
+                  "defaults": default_sensor_like(sensor, scale_known=scale_known)},
             rate, dark,
             flats, lv, hot, n_readouts=min(n, cfg.check_readouts or n), seed=cfg.check_seed,
             progress=progress)
     return _report(cap, n, cfg, sensor, params, diag, notes, dark, flats, lv, detected, fit,
-                   flat_levels_unknown=levels is None)
+                   flat_levels_unknown=not scale_known)
 
 
 #: How the regions were found, by ``_regions``' third result, for the report.

@@ -177,12 +177,15 @@ def _check_flat_means(means, flats, rate, t, names):
                             "brighter region)")
 
 
-def fit_response(means, levels, b_mean: float, dark_known: bool, notes: list):
+def fit_response(means, levels, b_mean: float, dark_known: bool, notes: list,
+                 response: float | None = None):
     """Radiances, response ``R`` (spikes/readout at I = 1) and dark rate (step 4).
 
     ``b_mean`` is the measured dark rate when ``dark_known``; otherwise the dark
     rate comes from the intercept (two or more known radiances) or from the
-    package default ``d₀`` as ``b̄ = d₀·R``.
+    package default ``d₀`` as ``b̄ = d₀·R``.  ``response``: a known ``R``
+    (from a known ``full_scale_rate``) that places radiances unknown as
+    ``(mean − b̄)/R``; else the brightest region is ``I = 1``.
     """
     d0 = DARK_FALLBACK["dark_current_rel"]
     if not dark_known and levels is not None and len(means) >= 2:
@@ -200,13 +203,13 @@ def fit_response(means, levels, b_mean: float, dark_known: bool, notes: list):
             if np.any(sig <= 0):
                 raise bad_value("flat regions", means.tolist(),
                                 f"rates above the dark rate {b:.3g}")
-            lv = sig / sig.max()
+            lv = sig / (sig.max() if response is None else response)
         else:
             lv = np.asarray(levels, dtype=np.float64)
         big_r = float(np.sum((means - b) * lv) / np.sum(lv**2))
         if not dark_known:
             b = d0 * max(big_r, 0.0)
-    if levels is None:
+    if levels is None and response is None:
         notes.append("flat radiances unknown: the brightest flat region defines full scale "
                      "(I = 1), the others are in proportion to their dark-subtracted rates")
     return lv, big_r, b
@@ -296,12 +299,24 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=Non
     means = np.array([x.mean() - h[0] for x, h in zip(flat_px, hot_terms, strict=True)])
     _check_flat_means(means, flats, rate, t,
                       names or [f"flat region {i}" for i in range(len(flats))])
-    lv, big_r, b_mean = fit_response(means, levels, b_mean, dark_known, notes)
+    b_dark, known = b_mean, config.full_scale_rate
+    rescale = known is not None and levels is None
+    lv, big_r, b_mean = fit_response(means, levels, b_dark, dark_known, [] if rescale else notes)
     if not big_r > 0:
         raise bad_value("flat regions", means.tolist(), "rates increasing with radiance")
     cv_a2 = response_spread(flat_px, hot_terms, lv, big_r, cv_b2 * b_mean**2, t, kappa2,
                             sigma_q2)
     params = unmix(cv_a2, cv_b2, big_r, kappa2, sigma_q2, config, notes)
+    if rescale:  # the scale from the known rate at I = 1
+        response = float(known) * (1 + params["threshold_mismatch"] ** 2)
+        lv, big_r, b_mean = fit_response(means, None, b_dark, dark_known, notes, response)
+        cv_a2 = response_spread(flat_px, hot_terms, lv, big_r, cv_b2 * b_mean**2, t, kappa2,
+                                sigma_q2)
+        params = unmix(cv_a2, cv_b2, big_r, kappa2, sigma_q2, config, [])
+        params["full_scale_rate"] = float(known)
+        notes.append(f"flat radiances unknown: placed by the known full_scale_rate {known:g} "
+                     f"(dark-subtracted rate over the mean response {response:.4g}): "
+                     + ", ".join(f"{v:.4g}" for v in lv))
     n_dark = int(dark.sum()) if dark is not None else 0
     n_hot = int(hot.sum())
     params["dark_current_rel"] = b_mean / big_r

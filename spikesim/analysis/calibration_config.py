@@ -42,6 +42,15 @@ class CalibrationConfig:
         Assumed comparator jitter σ_t (relative s.d. per cycle) when E is fitted.
     mismatch_split : float
         Threshold-mismatch share ``s²/(s² + p²)`` of the fitted response spread.
+    full_scale_rate : float or None
+        Known firing rate at radiance 1 (spikes per readout, e.g. a chip's
+        rate at full white), for captures whose flat radiances are unknown:
+        each flat region's radiance is then its dark-subtracted rate over the
+        mean response ``r·(1 + s²)``, so the radiances and the currents
+        relative to full scale (``dark_current_rel``, ``hot_pixel_dark_rel``)
+        are measured, not fractions of the brightest region.  ``None``: the
+        brightest region is full scale.  Not with ``flat_levels`` (the
+        radiances already set the scale).
     fit_charge_noise : bool
         Fit ``charge_noise_electrons`` (interval CV² growing with the interval
         length) when the data supports it; ``False`` keeps it at 0.
@@ -60,6 +69,7 @@ class CalibrationConfig:
     electrons_per_threshold: float | None = None
     temporal_threshold_noise: float = 0.006
     mismatch_split: float = DEFAULT_MISMATCH_SPLIT
+    full_scale_rate: float | None = None
     fit_charge_noise: bool = True
     max_readouts: int | None = None
     check: bool = True
@@ -80,6 +90,9 @@ class CalibrationConfig:
             raise bad_value("temporal_threshold_noise", st, "a relative s.d. in [0, 0.1]")
         if not (is_real(self.mismatch_split) and 0 <= float(self.mismatch_split) <= 1):
             raise bad_value("mismatch_split", self.mismatch_split, "a share in [0, 1]")
+        r = self.full_scale_rate
+        if r is not None and not (is_real(r) and 0 < float(r) <= 1):
+            raise bad_value("full_scale_rate", r, "a rate in (0, 1] spikes per readout, or None")
         for name in ("max_readouts", "check_readouts"):
             v = getattr(self, name)
             if v is not None and not (is_int(v) and v >= 1):

@@ -118,6 +118,10 @@ def register(subparsers) -> None:
                    help="assumed comparator jitter when E is fitted (default 0.006)")
     s.add_argument("--mismatch-split", type=float, default=None,
                    help="threshold-mismatch share of the response spread (default SCSim ratio)")
+    s.add_argument("--full-scale-rate", type=float, default=None,
+                   help="known rate at radiance 1 in spikes per readout (e.g. the chip's rate "
+                        "at full white): places flat regions of unknown radiance (default: the "
+                        "brightest region is full scale)")
     s.add_argument("--no-charge-noise", dest="charge_noise", action="store_false",
                    help="keep charge_noise_electrons at 0 (default: fitted when the interval CV "
                         "grows significantly with the interval length)")
@@ -231,10 +235,11 @@ def _run_calibrate(args) -> int:
         flat_levels=_floats(args.levels, "--levels"), detect=args.detect,
         electrons_per_threshold=args.electrons, temporal_threshold_noise=args.sigma_t,
         mismatch_split=DEFAULT_MISMATCH_SPLIT if args.mismatch_split is None
-        else args.mismatch_split,
+        else args.mismatch_split, full_scale_rate=args.full_scale_rate,
         fit_charge_noise=args.charge_noise, max_readouts=args.max_readouts, check=args.check,
         check_seed=args.seed, reset=args.reset, progress=args.progress,
-        option_names={"flat_levels": "--levels", "reset": "--reset"})
+        option_names={"flat_levels": "--levels", "reset": "--reset",
+                      "full_scale_rate": "--full-scale-rate"})
     paths = write_report(res, args.out)
     sensor_path = Path(args.out) / "sensor.json"
     sensor_path.write_text(res.sensor.to_json() + "\n")

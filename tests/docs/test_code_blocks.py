@@ -116,8 +116,9 @@ def _is_ours(caught: warnings.WarningMessage, rel: Path) -> bool:
     the example): its class is theirs, or it comes from their code or the
     example's own lines (``rel``); third-party deprecations are left alone."""
     module = caught.category.__module__.split(".")[0]
+    parents = Path(caught.filename).resolve().parents
     return (module in ("spikesim", "spikejdd") or caught.filename.startswith(str(rel))
-            or ROOT in Path(caught.filename).resolve().parents)
+            or ROOT / "spikesim" in parents or ROOT / "spikejdd" in parents)
 
 
 def run_file(doc: Path, workdir: Path) -> int:

@@ -84,6 +84,42 @@ def test_short_capture_recovers_parameters(strong):
         math.sqrt(d["sigma_q2"]) * p["electrons_per_threshold"])
 
 
+def test_a_known_full_scale_rate_places_the_regions(strong, capsys, tmp_path):
+    """Radiances unknown but the rate at radiance 1 known: the regions' radiances and
+    the currents relative to full scale are measured, not fractions of the brightest band."""
+    stream, _, _, truth, blind = strong
+    levels = FIDELITY_SETTINGS[STRONG][2]
+    res = calibrate(stream, check=False, full_scale_rate=truth.full_scale_rate)
+    p, noise = res.data["parameters"], truth.noise
+    assert p["full_scale_rate"] == truth.full_scale_rate
+    assert res.flat_levels == pytest.approx(levels, rel=0.03)
+    assert p["dark_current_rel"] == pytest.approx(noise.dark_current_rel, rel=0.15)
+    assert blind.data["parameters"]["dark_current_rel"] > 2 * noise.dark_current_rel
+    # the scale does not change the fitted spreads or temporal noise
+    for key in ("combined_gain_spread", "kappa2", "sigma_q2"):
+        assert res.data["diagnostics"][key] == pytest.approx(blind.data["diagnostics"][key],
+                                                             rel=1e-6), key
+    assert any("known full_scale_rate" in n for n in res.notes)
+    assert not any("brightest flat region defines" in n for n in res.notes)
+    with pytest.raises(SpikeSimValueError, match=r"full_scale_rate=0.6 .*None when flat_levels"):
+        calibrate(stream, check=False, full_scale_rate=0.6, flat_levels=levels)
+    with pytest.raises(SpikeSimValueError, match="full_scale_rate=1.5"):
+        calibrate(stream, check=False, full_scale_rate=1.5)
+    from spikesim.io import write_dat
+
+    write_dat(tmp_path / "cap.dat", stream.unpack())
+    args = ["analyze", "calibrate", str(tmp_path / "cap.dat"), "--height", "48", "--width",
+            "128", "--no-check", "--no-progress", "--full-scale-rate", "0.6"]
+    assert main(args + ["--levels", "0.1,0.2,0.3", "--out", str(tmp_path / "c0")]) == 1
+    assert "--full-scale-rate=0.6 is invalid: expected None when --levels" in \
+        capsys.readouterr().err
+    assert main(args + ["--out", str(tmp_path / "c1")]) == 0
+    import json
+
+    rep = json.loads((tmp_path / "c1" / "calibration.json").read_text())
+    assert rep["parameters"]["full_scale_rate"] == 0.6
+
+
 def test_no_charge_noise_is_not_invented(weak):
     *_, res = weak
     d = res.data["diagnostics"]
