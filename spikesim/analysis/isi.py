@@ -25,6 +25,7 @@ from spikesim.analysis.capture import as_capture, pixel_intervals
 from spikesim.analysis.report import AnalysisResult
 from spikesim.analysis.sweep import check_levels, check_sensor, simulate_flat
 from spikesim.errors import bad_value
+from spikesim.noise import PaperNoise
 
 __all__ = ["isi_statistics", "interval_summary", "DEFAULT_ISI_LEVELS"]
 
@@ -70,13 +71,13 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
     left_out = [float(v) for v in asked if v not in lv]
     if lv.size == 0:
         raise bad_value("levels", levels, "some radiance with 0 < r·I < 1 (r = full_scale_rate)")
-    kappa2 = theory.cycle_cv2(sensor.noise)
-    sigma_q2 = theory.charge_noise_var(sensor.noise)
+    paper = isinstance(sensor.noise, PaperNoise)
+    kappa2, sigma_q2 = theory.temporal_terms(sensor.noise, sensor.full_scale_rate)
     loss = theory.reset_loss(sensor.noise)
     rows = []
     keys = ("mean", "mean_theory", "within_var", "within_var_theory", "pooled_var",
             "pooled_var_theory", "clean_fraction")
-    out = {k: [] for k in keys}
+    out = {k: [] for k in keys} | ({"sigma_q2": []} if paper else {})
     hists = []
     it = lv
     if progress:
@@ -85,7 +86,11 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
         it = tqdm(lv, desc="isi", unit="level")
     for level in it:
         run = simulate_flat(sensor, level, n_readouts, seed, size)
-        q = np.minimum(run.q, 1.0)
+        r = sensor.full_scale_rate
+        q = np.minimum(theory.effective_charge(run.q, sensor.noise, r, level)[0], 1.0)
+        if paper:  # its per-readout variance depends on the radiance
+            kappa2, sigma_q2 = theory.temporal_terms(sensor.noise, r, level)
+            out["sigma_q2"].append(sigma_q2)
         if np.mean(q) * n_readouts < 3:
             raise bad_value("n_readouts", n_readouts,
                             f">= {int(np.ceil(3 / max(np.mean(q), 1e-12)))} for radiance "
@@ -111,11 +116,15 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
     data = {"sensor": sensor.to_dict(), "levels": lv, "n_readouts": n_readouts,
             "size": list(size), "seed": seed, "kappa2": kappa2, "sigma_q2": sigma_q2,
             "reset_charge_loss": loss, **out}
+    terms = (f"Paper-mode noise: κ² = 0, and each readout's independent rectified charge "
+             f"r·max(I + s·z, 0) (mean q, above r·I near the dark) has variance σ_q² = "
+             f"{', '.join(f'{v:.3g}' for v in out['sigma_q2'])} thresholds² at the radiances "
+             "below, which accumulates like a charge noise" if paper else
+             f"Cycle CV² κ² = σ_t² + 1/E = {kappa2:.3g}; accumulating charge noise "
+             f"σ_q² = (σ_e/E)² = {sigma_q2:.3g} thresholds² per readout")
     notes = [
         f"Flat fields, {size[0]}×{size[1]} pixels, {n_readouts} readouts; intervals in "
-        f"readouts. Cycle CV² κ² = σ_t² + 1/E = {kappa2:.3g}; accumulating charge noise "
-        f"σ_q² = (σ_e/E)² = {sigma_q2:.3g} thresholds² per readout; charge loss at reset "
-        f"f = {loss:g}.",
+        f"readouts. {terms}; charge loss at reset f = {loss:g}.",
         "Theory: mean 1/q + f; within-pixel variance κ²/q² + σ_q²/q³ + "
         "E[frac(τ)(1−frac(τ))] (p(1−p) noise free); pooled variance adds the fixed-pattern "
         "spread var_i(1/q_i). Last column: "

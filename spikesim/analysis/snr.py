@@ -113,9 +113,10 @@ def _tfp_snr_theory(model, q, v1, w, r, noise) -> float:
     return np.inf if mean_th > 0 else np.nan
 
 
-def _tfi_snr(spikes, q, cfg: SNRConfig, noise, r: float) -> tuple[float, float]:
+def _tfi_snr(spikes, q, cfg: SNRConfig, noise, r: float, level: float) -> tuple[float, float]:
     """Measured and theoretical SNR of TFI at centres ``tfi_stride`` apart (NaN when the
-    stream is too short for three of the longest intervals on either side)."""
+    stream is too short for three of the longest intervals on either side); ``q`` the
+    mean charges (:func:`spikesim.analysis.theory.effective_charge`) at radiance ``level``."""
     qmin = float(q.min())
     margin = int(np.ceil(3.0 / qmin)) if qmin > 0 else cfg.n_readouts
     centres = np.arange(margin, cfg.n_readouts - margin, cfg.tfi_stride)
@@ -125,8 +126,8 @@ def _tfi_snr(spikes, q, cfg: SNRConfig, noise, r: float) -> tuple[float, float]:
         m, s = float(vals.mean()), float(vals.std())
         measured = m / s if s > m * 1e-9 else np.inf
         if ((q > 0) & (q < 0.95)).all():
-            e1, e2 = tfi_moments_theory(q, theory.cycle_cv2(noise), r,
-                                        theory.charge_noise_var(noise), theory.reset_loss(noise))
+            kappa2, sigma_q2 = theory.temporal_terms(noise, r, level)
+            e1, e2 = tfi_moments_theory(q, kappa2, r, sigma_q2, theory.reset_loss(noise))
             var = e2.mean() - e1.mean() ** 2
             theory_snr = e1.mean() / np.sqrt(var) if var > 1e-18 else np.inf
     return measured, theory_snr
@@ -149,9 +150,8 @@ def measure_snr(sensor, levels: np.ndarray, cfg: SNRConfig, progress: bool = Fal
         it = tqdm(levels, desc="snr", unit="level")
     for level in it:
         run = simulate_flat(sensor, level, cfg.n_readouts, cfg.seed, cfg.size)
-        q = run.q
+        q, v1 = theory.effective_charge(run.q, sensor.noise, r, level)
         model = theory.rate_theory(q, sensor.reset, theory.reset_loss(sensor.noise))
-        v1 = theory.charge_variance_per_readout(q, sensor.noise, r, level)
         res["mean_rate"].append(float(run.spikes.mean()))
         for w in wins:
             est = _window_estimates(run.spikes, w, r)
@@ -162,7 +162,7 @@ def measure_snr(sensor, levels: np.ndarray, cfg: SNRConfig, progress: bool = Fal
             res[f"tfp_snr_theory_w{w}"].append(
                 _tfp_snr_theory(model, q, v1, w, r, sensor.noise))
             res.setdefault(f"mean_tfp_w{w}", []).append(m)
-        measured, predicted = _tfi_snr(run.spikes, q, cfg, sensor.noise, r)
+        measured, predicted = _tfi_snr(run.spikes, q, cfg, sensor.noise, r, level)
         res["tfi_snr"].append(measured)
         res["tfi_snr_theory"].append(predicted)
         if level == 0:

@@ -18,9 +18,16 @@ eq. 1 for the pixel, eq. 5 for paper-mode noise):
   ``E`` electrons per threshold gives ``q/E``; comparator jitter of relative
   s.d. ``σ_t`` per firing cycle gives ``q·σ_t²`` (one draw per threshold
   crossed); together ``q·κ²`` with the **cycle coefficient of variation**
-  ``κ² = σ_t² + 1/E``.  Paper mode: ``r²·(σ_g² + σ_p²·y)/255²`` with ``y`` in DN.
-  A charge noise of ``σ_e`` electrons per readout (``charge_noise_electrons``)
-  adds ``σ_q² = (σ_e/E)²`` per readout whatever the charge.
+  ``κ² = σ_t² + 1/E``.  A charge noise of ``σ_e`` electrons per readout
+  (``charge_noise_electrons``) adds ``σ_q² = (σ_e/E)²`` per readout whatever
+  the charge.
+* **Paper mode** (eq. 5): each readout collects ``r·max(I + s·z, 0)`` with
+  ``s = sqrt(σ_g² + σ_p²·y)/255``, ``y = 255·I``: a rectified normal, of mean
+  ``r·(I·Φ(a) + s·φ(a))`` and variance ``r²·((I² + s²)·Φ(a) + I·s·φ(a)) −
+  mean²``, ``a = I/s`` (:func:`paper_charge`).  So negative light clipped to
+  zero raises the mean charge (in the dark: ``r·s/√(2π)``, a dark rate), and
+  the independent per-readout charges accumulate like a charge noise:
+  ``κ² = 0`` and ``σ_q²`` = that variance (:func:`temporal_terms`).
 * **Inter-spike interval.**  The unclocked cycle length is
   ``τ ~ (1/q)·(1 + κ·z)`` readouts (renewal, independent cycles), so
   ``Var(τ) = κ²/q²``.  Clocking maps ``τ`` to ``⌈τ − u⌉`` with the phase ``u``
@@ -71,6 +78,9 @@ __all__ = [
     "isi_var_theory",
     "isi_cv2_theory",
     "charge_noise_var",
+    "paper_charge",
+    "effective_charge",
+    "temporal_terms",
     "reset_loss",
     "with_reset_loss",
     "theory_holds",
@@ -226,18 +236,70 @@ def charge_variance_per_readout(q, noise, full_scale_rate: float, intensity=None
     """Per-readout variance of the charge (thresholds²) at mean charge ``q``.
 
     Physical mode: ``q·κ² + σ_q²`` (see module notes; fixed-pattern electrons
-    per threshold are ignored to first order).  Paper mode (eq. 5):
-    ``r²·(σ_g² + σ_p²·y)/255²``, ``y = 255·intensity`` (clipping at 0 ignored).
+    per threshold are ignored to first order).  Paper mode (eq. 5): the
+    variance of the rectified charge at radiance ``intensity``
+    (:func:`paper_charge`; ``r²·(σ_g² + σ_p²·y)/255²`` far above zero).
     """
+    return effective_charge(q, noise, full_scale_rate, intensity)[1]
+
+
+def _rectified(mu, s):
+    """Mean and variance of ``max(X, 0)`` for ``X ~ N(mu, s²)``, ``s ≥ 0``."""
+    from scipy.special import ndtr
+
+    mu, s = np.broadcast_arrays(np.asarray(mu, np.float64), np.asarray(s, np.float64))
+    noisy = s > 0
+    a = mu / np.where(noisy, s, 1.0)
+    cdf, pdf = ndtr(a), np.exp(-0.5 * a * a) / np.sqrt(2.0 * np.pi)
+    clean = np.maximum(mu, 0.0)
+    mean = np.where(noisy, mu * cdf + s * pdf, clean)
+    second = np.where(noisy, (mu * mu + s * s) * cdf + mu * s * pdf, clean * clean)
+    return mean, np.maximum(second - mean * mean, 0.0)
+
+
+def paper_charge(noise, full_scale_rate: float, intensity):
+    """Mean (thresholds) and variance (thresholds²) of one readout's paper-mode
+    charge ``r·max(I + s·z, 0)`` at radiance ``intensity``, ``s =
+    sqrt(σ_g² + σ_p²·255·I)/255`` (Dong et al. eq. 5, negative light clipped
+    to zero: the rectified normal, module notes)."""
+    if not isinstance(noise, PaperNoise):
+        raise bad_value("noise", noise, "a PaperNoise")
+    if not (np.isfinite(full_scale_rate) and full_scale_rate > 0):
+        raise bad_value("full_scale_rate", full_scale_rate, "a rate > 0 (spikes per readout)")
+    level = _numbers(intensity, "intensity")
+    if np.any(level < 0):
+        raise bad_value("intensity", intensity, "radiances >= 0")
+    sd = np.sqrt(noise.variance_dn(255.0 * level)) / 255.0
+    mean, var = _rectified(level, sd)
+    return full_scale_rate * mean, full_scale_rate**2 * var
+
+
+def effective_charge(q, noise, full_scale_rate: float, intensity=None):
+    """``(mean, variance)`` of the charge per readout (thresholds, thresholds²) of
+    pixels of nominal charge ``q``: ``(q, q·κ² + σ_q²)`` in physical mode,
+    :func:`paper_charge` at radiance ``intensity`` (default 0) in paper mode, ``(q, 0)``
+    without noise.  The rate and count theory take this mean."""
     q = _charge(q)
     if not (np.isfinite(full_scale_rate) and full_scale_rate > 0):
         raise bad_value("full_scale_rate", full_scale_rate, "a rate > 0 (spikes per readout)")
     if isinstance(_noise_model(noise), PhysicalNoise):
-        return q * cycle_cv2(noise) + charge_noise_var(noise)
+        return q, q * cycle_cv2(noise) + charge_noise_var(noise)
     if isinstance(noise, PaperNoise):
-        y = 255.0 * np.asarray(intensity if intensity is not None else 0.0, dtype=np.float64)
-        return full_scale_rate**2 * noise.variance_dn(y) / 255.0**2 + 0.0 * q
-    return np.zeros_like(q)
+        mean, var = paper_charge(noise, full_scale_rate, 0.0 if intensity is None else intensity)
+        return mean + 0.0 * q, var + 0.0 * q
+    return q, np.zeros_like(q)
+
+
+def temporal_terms(noise, full_scale_rate: float, intensity=None) -> tuple[float, float]:
+    """``(κ², σ_q²)`` of the interval theory: per-cycle CV² and the per-readout
+    variance that accumulates (thresholds²).  Physical mode: :func:`cycle_cv2`,
+    :func:`charge_noise_var`; paper mode: ``0`` and the variance of
+    :func:`paper_charge` at radiance ``intensity`` (its charges are independent per
+    readout, so they accumulate like a charge noise)."""
+    if isinstance(noise, PaperNoise):
+        return 0.0, float(np.mean(paper_charge(noise, full_scale_rate,
+                                               0.0 if intensity is None else intensity)[1]))
+    return cycle_cv2(noise), charge_noise_var(noise)
 
 
 def count_variance(q, window: int, v1=0.0) -> np.ndarray:

@@ -86,10 +86,10 @@ def transfer_curve(sensor="ideal", levels=DEFAULT_LEVELS, n_readouts: int = 2000
         run = simulate_flat(sensor, level, n_readouts, seed, size)
         rate, fpn, tsd = window_spreads(run.spikes, window)
         loss = theory.reset_loss(sensor.noise)
-        model = theory.rate_theory(run.q, sensor.reset, loss)
-        v1 = theory.charge_variance_per_readout(run.q, sensor.noise, r, level)
-        holds = theory.theory_holds(run.q, v1, sensor.noise)
-        qe, v1e = theory.with_reset_loss(run.q, v1, loss)
+        qm, v1 = theory.effective_charge(run.q, sensor.noise, r, level)
+        model = theory.rate_theory(qm, sensor.reset, loss)
+        holds = theory.theory_holds(qm, v1, sensor.noise)
+        qe, v1e = theory.with_reset_loss(qm, v1, loss)
         qc = np.minimum(qe, 1)
         cvar = np.where(qe < 1, theory.count_variance(qc, window, v1e), 0.0)
         tot = np.where(qe < 1, theory.count_variance(qc, n_readouts, v1e), 0.0)
@@ -113,9 +113,10 @@ def transfer_curve(sensor="ideal", levels=DEFAULT_LEVELS, n_readouts: int = 2000
         "Rates in spikes per readout. *model* uses the sensor's own fixed pattern "
         "(q_i = r·(g_i·I + d_i)/t_i); FPN = spread of per-pixel mean rates; temporal = "
         f"spread of one pixel's rate over {window}-readout windows; the charge loss at "
-        "reset is included. With noise the theory columns are not given (–) where some "
-        "pixel's charge per readout is within 0.05 + 3 noise s.d. of one threshold, or, "
-        "with accumulating charge noise σ_q², below 10·σ_q² (spikes from diffusion "
+        "reset is included, and paper-mode noise as the rectified charge r·max(I + s·z, 0) "
+        "(negative light clipped: a dark rate). With noise the theory columns are not given "
+        "(–) where some pixel's charge per readout is within 0.05 + 3 noise s.d. of one "
+        "threshold, or, with accumulating charge noise σ_q², below 10·σ_q² (spikes from diffusion "
         "alone); the temporal theory is not given for zero reset.",
     ]
 

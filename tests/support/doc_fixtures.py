@@ -42,9 +42,9 @@ def _frames(n_frames: int, size: tuple[int, int], fps: float) -> list[np.ndarray
 
 
 def make_reds(root: str = "REDS/train_sharp", sequence: str = "000", n_frames: int = 100,
-              size: tuple[int, int] = (180, 320), fps: float = 120.0) -> Path:
+              size: tuple[int, int] = (180, 320), fps: float = 24.0) -> Path:
     """A REDS-shaped folder ``root/sequence/%08d.png`` (REDS sequences have 100
-    frames at 120 fps)."""
+    frames at 24 fps)."""
     folder = Path(root) / sequence
     folder.mkdir(parents=True, exist_ok=True)
     for i, frame in enumerate(_frames(n_frames, size, fps)):

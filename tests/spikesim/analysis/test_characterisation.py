@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import spikesim as ss
-from spikesim.analysis import isi_statistics, snr_curve, transfer_curve
+from spikesim.analysis import isi_statistics, snr_curve, theory, transfer_curve
 from spikesim.errors import SpikeSimValueError
 
 
@@ -120,6 +120,42 @@ def test_isi_and_tfi_theory_include_charge_noise_and_charge_loss():
                     size=(16, 16), tfi_stride=40).data
     for m, t in zip(snr["tfi_snr"], snr["tfi_snr_theory"], strict=True):
         assert m == pytest.approx(t, rel=0.08)
+
+
+def test_paper_mode_theory_is_the_rectified_charge_and_its_random_walk():
+    """Paper-mode noise (GN σ_g = 10): each readout's charge r·max(I + s·z, 0) is a
+    rectified normal, whose mean exceeds r·I near the dark (a dark rate) and whose
+    variance accumulates like a charge noise; the ISI, transfer and SNR theory follow
+    the simulation (noise-free theory was 12× too small in the within-pixel variance
+    at I = 0.1 and gave no dark rate)."""
+    noise = ss.noise.PaperNoise(sigma_g=10.0)
+    rng = np.random.default_rng(0)
+    for level in (0.0, 0.02, 0.5):  # against Monte Carlo of the rectified charge
+        s = 10.0 / 255.0
+        draws = 0.6 * np.maximum(level + s * rng.standard_normal(1_000_000), 0.0)
+        mean, var = theory.paper_charge(noise, 0.6, level)
+        assert mean == pytest.approx(draws.mean(), rel=3e-3)
+        assert var == pytest.approx(draws.var(), rel=3e-3)
+    gn = MONO.replace(noise=noise, full_scale_rate=0.6)
+    res = isi_statistics(gn, (0.02, 0.1, 0.5), n_readouts=3000, size=(16, 16))
+    d, counts = res.data, [r[1] for r in res.tables[0][2]]
+    assert d["kappa2"] == 0 and len(d["sigma_q2"]) == 3 and "Paper-mode noise" in res.notes[0]
+    for m, mt in zip(d["mean"], d["mean_theory"], strict=True):
+        assert m == pytest.approx(mt, rel=0.01)
+    for v, vt, n in zip(d["within_var"], d["within_var_theory"], counts, strict=True):
+        assert v == pytest.approx(vt, rel=4 * np.sqrt(2 / n) + 0.03)
+    t = transfer_curve(gn, (0.0, 0.02, 0.5), n_readouts=2000, size=(32, 32), window=50).data
+    assert t["model_rate"][0] == pytest.approx(0.6 * 10 / 255 / np.sqrt(2 * np.pi))
+    for key, meas, rel in (("model_rate", "mean_rate", 0.02),
+                           ("temporal_sd_theory", "temporal_sd", 0.08)):
+        for a, b in zip(t[key], t[meas], strict=True):
+            assert a == pytest.approx(b, rel=rel), key
+    snr = snr_curve(gn, (0.0, 0.1), (41,), n_readouts=3220, size=(16, 16), tfi_stride=40)
+    assert snr.data["dark"]["model_rate"] == pytest.approx(snr.data["dark"]["rate_per_readout"],
+                                                           rel=0.03)
+    for a, b in (("tfp_snr_w41", "tfp_snr_theory_w41"), ("tfi_snr", "tfi_snr_theory")):
+        for m, th in zip(snr.data[a], snr.data[b], strict=True):
+            assert m == pytest.approx(th, rel=0.08), a
 
 
 def test_tfp_and_transfer_theory_include_the_charge_loss_and_stop_where_it_fails():
