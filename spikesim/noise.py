@@ -53,6 +53,12 @@ class _NoiseBase:
         return {"type": self.kind, **dataclasses.asdict(self)}
 
     def replace(self, **changes):
+        """A copy with some fields changed (validated again)."""
+        known = {f.name for f in dataclasses.fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise bad_value(f"{type(self).__name__} field", unknown,
+                            f"fields among {sorted(known)}")
         return dataclasses.replace(self, **changes)
 
 

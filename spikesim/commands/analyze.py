@@ -42,7 +42,8 @@ def _common(p, sensor_default: str = "ideal") -> None:
     p.add_argument("--sensor", default=sensor_default,
                    help=f"sensor preset or a sensor .json file (default {sensor_default})")
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
-                   help="override a sensor field, e.g. --set reset=zero --set cfa=mono")
+                   help="override a sensor field, e.g. --set reset=zero --set cfa=mono, or "
+                        "a field of its noise model: --set noise.electrons_per_threshold=300")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--no-progress", dest="progress", action="store_false",
                    help="no progress bars")

@@ -13,11 +13,33 @@ from spikesim.workload import RunawayWorkWarning
 def load_sensor(spec: str, overrides: dict):
     """The sensor of a ``--sensor`` option: a preset name, or a sensor ``.json`` file
     (:meth:`spikesim.Sensor.to_json`), with ``--set``/``--size`` overrides applied
-    (``cfa=mono`` or ``none``: monochrome)."""
-    import spikesim as ss
-
+    (``cfa=mono`` or ``none``: monochrome; ``noise.FIELD``: a field of the sensor's
+    noise model, e.g. ``noise.electrons_per_threshold``)."""
     if overrides.get("cfa") in ("mono", "none"):
         overrides = dict(overrides, cfa=None)
+    noise_fields = {k.split(".", 1)[1]: v for k, v in overrides.items()
+                    if k.startswith("noise.")}
+    sensor = _base_sensor(spec, {k: v for k, v in overrides.items()
+                                 if not k.startswith("noise.")})
+    if not noise_fields:
+        return sensor
+    if sensor.noise is None:
+        name, value = next(iter(noise_fields.items()))
+        raise bad_value(f"--set noise.{name}", value, "a sensor with a noise model (this one "
+                        "has none): a noisy preset, or also --set 'noise={\"type\": \"physical\"}'")
+    try:
+        return sensor.replace(noise=sensor.noise.replace(**noise_fields))
+    except SpikeSimError as exc:
+        from spikesim.cli_guard import as_option
+
+        named = as_option(exc, {k: f"--set noise.{k}" for k in noise_fields})
+        raise (named if named is not exc else type(exc)(f"--set noise.FIELD: {exc}")) from None
+
+
+def _base_sensor(spec: str, overrides: dict):
+    """:func:`load_sensor` before its ``noise.FIELD`` overrides."""
+    import spikesim as ss
+
     path = Path(spec)
     if path.suffix.lower() == ".json":
         if not path.is_file():
@@ -47,7 +69,8 @@ def register(sub) -> None:
                         "the sensor.json `spikesim analyze calibrate` writes)")
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                    help="override a sensor field, e.g. --set clock_hz=40000 --set cfa=mono "
-                        "--set 'noise={\"type\":\"paper\",\"sigma_g\":5}'")
+                        "--set 'noise={\"type\":\"paper\",\"sigma_g\":5}', or a field of its "
+                        "noise model: --set noise.electrons_per_threshold=300")
     p.add_argument("--size", default=None, help="HxW frame size (default: the preset's)")
     p.add_argument("--fps", type=float, default=None, help="frame rate of a video source")
     p.add_argument("--readouts", type=int, required=True)

@@ -125,6 +125,33 @@ def test_simulate_takes_a_sensor_json_and_says_what_it_simulated(tmp_path, capsy
     assert f"sensor file '{bad}': prnu=-1 is invalid" in capsys.readouterr().err
 
 
+def test_set_reaches_the_fields_of_the_noise_model(tmp_path, capsys):
+    """--set noise.FIELD=VALUE changes one field of the sensor's noise model (the
+    others are kept); an unknown field, a bad value or a sensor without noise is one
+    error naming the flag."""
+    out = tmp_path / "n.h5"
+    assert main(["simulate", "astronaut", "--readouts", "5", "--size", "8x8", "--sensor",
+                 "physical", "--set", "noise.electrons_per_threshold=300", "--set",
+                 "noise.charge_noise_electrons=2", "--out", str(out)]) == 0
+    capsys.readouterr()
+    got = ss.io.open_h5(out).meta["sensor"]["noise"]
+    default = ss.Sensor.preset("physical").noise
+    assert got["electrons_per_threshold"] == 300 and got["charge_noise_electrons"] == 2
+    assert got["prnu"] == default.prnu
+    for sensor, item, message in (
+            ("physical", "noise.electrons=3", "--set noise.FIELD: PhysicalNoise field=['electrons']"
+             " is invalid: expected fields among"),
+            ("physical", "noise.prnu=-1", "--set noise.prnu=-1 is invalid"),
+            ("ideal", "noise.prnu=0.1", "expected a sensor with a noise model (this one has "
+             "none)")):
+        assert main(["simulate", "astronaut", "--readouts", "5", "--sensor", sensor, "--set",
+                     item, "--out", str(tmp_path / "m.h5")]) == 1
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1, err
+    with pytest.raises(ss.errors.SpikeSimValueError, match="PaperNoise field"):
+        ss.noise.PaperNoise().replace(sigma=3)
+
+
 def test_simulate_passes_scene_options_and_names_the_flags(tmp_path, capsys):
     """--speed and --scene-set KEY=VALUE reach the built-in scene; a key or value the
     scene refuses is named by its flag."""
