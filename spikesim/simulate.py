@@ -497,7 +497,9 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
         Also produce the noise-free twin in the same pass.
     gt_readouts : sequence of int, "all", or None
         Readouts at which ground-truth radiance is recorded (default: the
-        middle readout ``n_readouts // 2``).
+        middle readout ``n_readouts // 2``; ``[]``: none).  They are kept
+        sorted and once each: ``stream.gt[k]`` is the frame at
+        ``stream.gt_index[k]``, whatever order they were given in.
     chunk_readouts : int, optional
         Readouts per chunk (memory bound); results do not depend on it.
     progress : bool
