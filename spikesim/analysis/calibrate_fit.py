@@ -281,9 +281,12 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=Non
     hot = find_hot_pixels(rate, dark, t)
     good_dark = dark & ~hot if dark is not None else None
     pool = np.zeros(rate.shape, bool) if good_dark is None else good_dark.copy()
-    for f in flats:
+    regions = pool.astype(np.int64)  # 1: dark, 2…: the flat regions
+    for k, f in enumerate(flats):
         pool |= f
-    tf = fit_temporal(mom, pool, config.fit_charge_noise)
+        regions[f] = k + 2
+    tf = fit_temporal(mom, pool, config.fit_charge_noise, regions=regions,
+                      mismatch_share=config.mismatch_split)
     kappa2, sigma_q2 = tf.kappa2, tf.sigma_q2
     notes.append(tf.reason)
     dark_known = good_dark is not None and bool(good_dark.any())

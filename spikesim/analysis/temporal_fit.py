@@ -16,21 +16,30 @@ a CV² that does not depend on ``m``; the charge noise makes it grow as
 Each pixel's sample variance ``v_i`` over ``n_i`` intervals has variance
 ``≈ 2·V_i²/(n_i − 1)``; (κ², σ_q²) are fitted by weighted least squares on
 ``v_i − F_i`` with weights ``(n_i − 1)/(2·V_i²)``, ``V_i`` the model of the
-previous iteration (five fixed-point iterations, both terms kept ≥ 0).  The
-significance of σ_q² comes from the same fit with free signs: its WLS
-standard error, inflated by the reduced χ² when that exceeds 1 (pixels that
-are not exactly stationary).  σ_q² is kept only when the data supports it:
-a ratio of at least ``MIN_SPAN`` between the 90th and the 10th percentile of
-the pixels' mean intervals, and the free estimate at least ``MIN_Z``
-standard errors above 0; otherwise the one-term fit (σ_q² = 0) is used and
-the reason is returned.  A free estimate at least ``MIN_Z`` standard errors
-*below* 0 is reported as a misfit, not as "not significant": the model's CV²
-cannot fall with the interval length, so the intervals of the regions are not
-those of static pixels under steady light (moving content, flicker).
+previous iteration (five fixed-point iterations, both terms kept ≥ 0).
+
+**Threshold mismatch.**  The charge noise is fixed in electrons, so a pixel of
+threshold ``t_i`` (relative) has ``σ_q/t_i``, and its charge-noise variance is
+``σ_q²·m_i³/t_i²``.  Within a static region the mean intervals differ by the
+fixed pattern, ``m_i ∝ t_i/g_i``: threshold mismatch alone would make that
+variance grow as ``m_i``, not ``m_i³``, and a fit with the ``m³`` column read
+much of it as κ² (``E`` 9 % low at the default pattern, 17 % with mismatch
+7 %).  ``t_i`` is not observed; its regression on the pixel's interval within
+its region (``regions``), ``t̂_i = (m_i/m̄)^ρ`` with ``m̄`` the region's
+geometric mean and ``ρ = s²/(s² + p²)`` the mismatch share of the response
+spread (``mismatch_share``; the calibration's ``mismatch_split``), divides the
+column: ``m_i³/t̂_i²``.
+
+**Diffusion.**  Where a pixel's drift ``q = 1/m`` is below ``10·σ_q²`` (the
+dark: its charge, held at zero, crosses by diffusion, and the random walk's
+law fails, see :func:`spikesim.analysis.theory.theory_holds`) the pixel is
+left out after a first fit, and the fit repeated: such pixels made κ² 6–8 %
+high.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +53,8 @@ __all__ = ["TemporalFit", "fit_temporal", "MIN_SPAN", "MIN_Z"]
 MIN_SPAN = 1.5
 #: Least significance (standard errors) of σ_q² for it to be kept.
 MIN_Z = 3.0
+#: Pixels whose drift ``q`` is below this many σ_q² fire by diffusion (left out).
+DIFFUSION_DRIFT = 10.0
 
 
 @dataclass(frozen=True)
@@ -61,27 +72,50 @@ class TemporalFit:
     interval_span: tuple[float, float]  # 10th and 90th percentile of the mean intervals
 
 
-def _select(mom, mask, min_mean, min_n):
-    sel = mask & (mom.n >= min_n)
+@dataclass(frozen=True)
+class _Pixels:
+    """The pixels a fit uses: mean interval, interval variance and count, and the
+    charge-noise column ``m³/t̂²`` (module notes)."""
+
+    mean: np.ndarray
+    var: np.ndarray
+    n: np.ndarray
+    m3: np.ndarray
+
+    def where(self, keep: np.ndarray) -> _Pixels:
+        return _Pixels(self.mean[keep], self.var[keep], self.n[keep], self.m3[keep])
+
+
+def _select(mom, mask, min_mean, min_n, regions=None, mismatch_share=0.0) -> _Pixels:
+    sel = mask & (mom.n >= min_n) & (mom.mean() >= min_mean)
     mean = mom.mean()[sel]
-    keep = mean >= min_mean
-    return mean[keep], mom.var()[sel][keep], mom.n[sel][keep].astype(np.float64)
+    n = mom.n[sel].astype(np.float64)
+    m3 = mean**3
+    if regions is not None and mismatch_share > 0:  # σ_q/t_i (module notes)
+        label = np.asarray(regions)[sel]
+        for g in np.unique(label):
+            at = label == g
+            log_m = np.log(mean[at])
+            t_hat = np.exp(mismatch_share * (log_m - np.average(log_m, weights=n[at])))
+            m3[at] /= t_hat**2
+    return _Pixels(mean, mom.var()[sel], n, m3)
 
 
-def _wls(mean, var, n, two_terms: bool, iterations: int = 5, nonneg: bool = True):
+def _wls(px: _Pixels, two_terms: bool, iterations: int = 5, nonneg: bool = True):
     """Fixed-point WLS of (κ², σ_q²); returns (κ², σ_q², covariance scale, cov).
 
     ``nonneg=False`` leaves the coefficients free (for the significance of σ_q²);
     the model variance of the weights is always kept ≥ 0."""
+    mean, var, n = px.mean, px.var, px.n
     k2, c = 0.0, 0.0
-    cols = [mean**2, mean**3] if two_terms else [mean**2]
+    cols = [mean**2, px.m3] if two_terms else [mean**2]
     x = np.stack(cols, axis=1)
     cov = np.zeros((x.shape[1], x.shape[1]))
     chi2 = 1.0
     for _ in range(iterations):
-        sd = np.sqrt(np.maximum(k2 * mean**2 + c * mean**3, 0.0))
+        sd = np.sqrt(np.maximum(k2 * mean**2 + c * px.m3, 0.0))
         f = theory.frac_variance(mean, sd)
-        v_model = np.maximum(k2 * mean**2 + c * mean**3 + f, 1e-3)
+        v_model = np.maximum(k2 * mean**2 + c * px.m3 + f, 1e-3)
         w = (n - 1) / (2 * v_model**2)
         y = var - f
         if nonneg:
@@ -118,7 +152,7 @@ def _solve_nonneg(x, y, w):
 
 
 def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0,
-                 min_n: int = 3) -> TemporalFit:
+                 min_n: int = 3, regions=None, mismatch_share: float = 0.0) -> TemporalFit:
     """Fit κ² and, when supported, σ_q² to the pixels of ``mask`` (see module notes).
 
     Parameters
@@ -129,26 +163,48 @@ def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0
     min_mean, min_n :
         Pixels used: mean interval ≥ ``min_mean`` readouts (the rounding term
         dominates below) and at least ``min_n`` intervals.
+    regions : (H, W) int, optional
+        The static region of each pixel of ``mask`` (labels), for the
+        threshold-mismatch correction (module notes; ``None``: none).
+    mismatch_share : float
+        ``ρ = s²/(s² + p²)``, the threshold mismatch's share of the response
+        spread (0: no correction).
     """
-    mean, var, n = _select(mom, mask, min_mean, min_n)
-    if mean.size == 0:
+    px = _select(mom, mask, min_mean, min_n, regions, mismatch_share)
+    if px.mean.size == 0:
         raise bad_value("capture length", f"no pixel with >= {min_n} intervals of >= "
                         f"{min_mean:g} readouts", "a longer capture, or flat regions of "
                         f"<= {1 / min_mean:g} spikes per readout, to measure temporal noise")
-    lo, hi = (float(v) for v in np.percentile(mean, [10, 90]))
-    k1, _, _, _ = _wls(mean, var, n, two_terms=False)
-    common = dict(n_pixels=int(mean.size), n_intervals=int(n.sum()), interval_span=(lo, hi))
+    fit = _fit(px, fit_charge_noise)
+    if fit.sigma_q2 > 0:  # leave out the pixels that fire by diffusion, and fit again
+        drifting = px.mean < 1.0 / (DIFFUSION_DRIFT * fit.sigma_q2)
+        if not drifting.all() and drifting.sum() >= 3:
+            again = _fit(px.where(drifting), fit_charge_noise)
+            if again.charge_noise_fitted:
+                left = int(px.mean.size - drifting.sum())
+                return dataclasses.replace(again, reason=again.reason + (
+                    f" ({left} pixel{'s' if left != 1 else ''} whose drift is below "
+                    f"{DIFFUSION_DRIFT:g}·σ_q² left out: they fire by diffusion)"))
+    return fit
+
+
+def _fit(px: _Pixels, fit_charge_noise: bool) -> TemporalFit:
+    """:func:`fit_temporal` on the pixels ``px``."""
+    lo, hi = (float(v) for v in np.percentile(px.mean, [10, 90]))
+    k1, _, _, _ = _wls(px, two_terms=False)
+    common = dict(n_pixels=int(px.mean.size), n_intervals=int(px.n.sum()),
+                  interval_span=(lo, hi))
     if not fit_charge_noise:
         return TemporalFit(k1, 0.0, float("nan"), float("nan"), False,
                            "charge noise not fitted (fit_charge_noise=False)", **common)
-    if mean.size < 3 or hi < MIN_SPAN * lo:
+    if px.mean.size < 3 or hi < MIN_SPAN * lo:
         return TemporalFit(k1, 0.0, float("nan"), float("nan"), False,
                            f"mean intervals span {lo:.3g}-{hi:.3g} readouts (10th-90th "
                            f"percentile), less than x{MIN_SPAN:g}: no slope of CV² to fit",
                            **common)
-    _, c_free, scale, cov = _wls(mean, var, n, two_terms=True, nonneg=False)
+    _, c_free, scale, cov = _wls(px, two_terms=True, nonneg=False)
     se = float(np.sqrt(max(cov[1, 1], 0.0) * scale))
-    k2, c, _, _ = _wls(mean, var, n, two_terms=True)
+    k2, c, _, _ = _wls(px, two_terms=True)
     if c_free > 0 and c_free >= MIN_Z * se and c > 0:
         return TemporalFit(k2, c, c, se, True,
                            f"CV² grows with the interval: σ_q² = {c:.3g} ± {se:.2g} "
