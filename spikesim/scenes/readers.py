@@ -32,6 +32,7 @@ import numpy as np
 
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, bad_value
 from spikesim.scenes.frame_cache import read_image
+from spikesim.scenes.jpeg_check import jpeg_truncated
 
 __all__ = [
     "IMAGE_EXTENSIONS",
@@ -128,7 +129,12 @@ class ImageFolderSource(FrameSource):
 
     def _decode(self, name: str) -> np.ndarray:
         path = Path(name)
-        img = cv2.imread(name, cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+        data = path.read_bytes()
+        if path.suffix.lower() in (".jpg", ".jpeg") and jpeg_truncated(data):
+            raise SpikeSimFormatError(f"unreadable frame {path}: a truncated JPEG (it ends "
+                                      "before its end-of-image marker; restore the file)")
+        img = cv2.imdecode(np.frombuffer(data, np.uint8),
+                           cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
         if img is None:
             raise SpikeSimFormatError(f"unreadable frame {path}: OpenCV could not decode it")
         if img.shape[:2] != (self.height, self.width):

@@ -114,6 +114,34 @@ def test_scene_video_srgb8_is_quantised():
     assert len(np.unique(v.frame(0))) <= 64
 
 
+def test_a_truncated_jpeg_frame_is_refused_not_read_as_grey(tmp_path):
+    """OpenCV decodes a cut JPEG with grey where the data stops (libjpeg only warns);
+    the frame is refused instead, naming the file. Whole JPEGs (baseline,
+    progressive, restart markers, data after the end marker) are read as before."""
+    from spikesim.scenes.jpeg_check import jpeg_truncated
+
+    (tmp_path / "jpg").mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(3):  # textured: a few kB of scan data after the header
+        assert cv2.imwrite(str(tmp_path / "jpg" / f"{i}.jpg"),
+                           (rng.random((48, 64, 3)) * 255).astype(np.uint8))
+    cut = tmp_path / "jpg" / "1.jpg"
+    data = cut.read_bytes()
+    assert not jpeg_truncated(data) and not jpeg_truncated(data + b"\xff\xda trailer")
+    cut.write_bytes(data[:-60])  # the header whole: the size reads, the pixels do not
+    v = sc.video(tmp_path / "jpg")
+    v.frame(0)
+    with pytest.raises(SpikeSimFormatError, match=r"unreadable frame .*1.jpg: a truncated JPEG"):
+        v.frame(1)
+    img = (rng.random((64, 80, 3)) * 255).astype(np.uint8)
+    for flags in ([], [cv2.IMWRITE_JPEG_PROGRESSIVE, 1], [cv2.IMWRITE_JPEG_RST_INTERVAL, 2]):
+        ok, buf = cv2.imencode(".jpg", img, flags)
+        whole = buf.tobytes()
+        assert ok and not jpeg_truncated(whole)
+        assert all(jpeg_truncated(whole[:k]) for k in range(2, len(whole) - 1, 7))
+    assert not jpeg_truncated(b"not a jpeg")  # left to the decoder
+
+
 def test_bad_inputs(tmp_path, clip):
     with pytest.raises(SpikeSimFileError, match="does not exist"):
         sc.video(tmp_path / "missing.mp4")
