@@ -12,6 +12,7 @@ epochs.  ``lr_step`` set explicitly overrides both.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -26,6 +27,25 @@ MODEL_PRESETS = {"default": DEFAULT, "lite": LITE, "published": PUBLISHED}
 AUTHORS_LR, AUTHORS_GAMMA, AUTHORS_LR_STEP_EPOCHS, AUTHORS_EPOCH_STEPS = 5e-4, 0.8, 50, 240
 #: Classical pipelines each chunk's benchmark row compares against.
 CLASSICAL = ["tfp+malvar2004", "tfp+menon2007", "tfp+menon2007+bilateral", "tfp+menon2007+nlm"]
+
+
+#: Settings a resumed run may change: how long, where and how fast it runs, not what it
+#: learns from or how (the model's own fields are checked with its configuration).
+RESUME_MAY_CHANGE = frozenset({
+    "steps", "time_limit_min", "resume", "init", "out", "device", "workers", "threads",
+    "progress", "amp", "channels_last", "eval_every", "checkpoint_every", "log_every",
+    "model", "model_overrides"})
+#: Settings that are paths: compared as resolved paths.
+_PATH_FIELDS = ("data", "eval_data")
+
+
+def _comparable(name: str, value):
+    """``value`` of setting ``name`` as it compares across calls (paths resolved, JSON types)."""
+    if name in _PATH_FIELDS and value:
+        return str(Path(value).resolve())
+    if name == "clips":
+        return [str(Path(c).resolve()) for c in value]
+    return json.loads(json.dumps(value, default=str))
 
 
 @dataclass
@@ -83,6 +103,19 @@ class TrainConfig:
         if unknown:
             raise bad_value("train config keys", unknown, f"names among {sorted(known)}")
         return cls(**d)
+
+    def resume_differences(self, saved: dict) -> list[str]:
+        """The settings that differ from ``saved`` (the ``train_config`` a checkpoint
+        holds) among those a resumed run may not change (not in
+        :data:`RESUME_MAY_CHANGE`): ``["crop=48 (the run has 64)", …]``."""
+        out = []
+        for f in fields(self):
+            if f.name in RESUME_MAY_CHANGE or f.name not in saved:
+                continue
+            mine = _comparable(f.name, getattr(self, f.name))
+            if mine != _comparable(f.name, saved[f.name]):
+                out.append(f"{f.name}={getattr(self, f.name)!r} (the run has {saved[f.name]!r})")
+        return out
 
     def validation_kind(self) -> str:
         """``"files"`` or ``"sweep"`` (``"auto"`` resolved)."""

@@ -333,8 +333,13 @@ class Trainer:
             raise bad_value("resume", str(path), "a checkpoint of the same model configuration "
                             f"({config_difference(blob['config'], self.mcfg.to_dict())}: give "
                             "the --model and --set it was trained with)")
-        self.model.load_state_dict(blob["state_dict"])
         tr = blob.get("train") or {}
+        changed = self.cfg.resume_differences(json.loads(tr.get("train_config") or "{}"))
+        if changed:  # the optimizer and data order would silently keep the run's own
+            raise bad_value("resume", str(path), "the run's own settings, and these differ: "
+                            + ", ".join(changed) + " (its run.json lists them; a new --out "
+                            "starts a new run)")
+        self.model.load_state_dict(blob["state_dict"])
         if "optimizer" in tr:
             self.optimizer.load_state_dict(tr["optimizer"])
             self.scheduler.load_state_dict(tr["scheduler"])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -95,6 +96,25 @@ def test_resume_with_another_model_is_refused(tiny_data, tmp_path):
     with pytest.raises(SpikeSimValueError, match=r"same model configuration \(it has "
                        r"stages=\d+ where this run has 2: give the --model and --set"):
         train(_cfg(root, tmp_path / "r", resume="auto", model_overrides=other))
+
+
+def test_resume_with_other_settings_is_refused(tiny_data, tmp_path, monkeypatch):
+    """A resumed run keeps its optimizer, schedule and data order, so changed data,
+    crops or learning rates would be silently ignored or mixed in: they are refused,
+    naming each; how long and how fast it runs may change, and the same data given
+    by another path is the same."""
+    root, _ = tiny_data
+    train(_cfg(root, tmp_path / "r", steps=1))
+    with pytest.raises(SpikeSimValueError, match=r"resume=.*these differ: crop=16 \(the run "
+                       r"has 12\), lr=0\.002 \(the run has 0\.001\)"):
+        train(_cfg(root, tmp_path / "r", resume="auto", crop=16, lr=2e-3))
+    other = shutil.copytree(root, tmp_path / "copy")  # another dataset, the same files
+    with pytest.raises(SpikeSimValueError, match=r"data=.*copy.* \(the run has"):
+        train(_cfg(other, tmp_path / "r", resume="auto"))
+    monkeypatch.chdir(root.parent)
+    done = train(_cfg(root.name, tmp_path / "r", resume="auto", steps=2, eval_every=1,
+                      checkpoint_every=1, threads=1))
+    assert done["steps_done"] == 2
 
 
 def test_init_starts_from_weights_with_a_fresh_schedule(tiny_data, tmp_path):
