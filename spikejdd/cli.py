@@ -157,8 +157,12 @@ def _reconstruct_parser(sub) -> None:
     rc.add_argument("--context", type=int, default=41, help="readouts given to the method")
     rc.add_argument("--cfa", help=".dat: Bayer pattern of a colour sensor (RGGB, BGGR, GRBG, "
                                   "GBRG; default mono, as a .dat records none)")
-    rc.add_argument("--height", type=int, help=".dat frame height (default 250)")
-    rc.add_argument("--width", type=int, help=".dat stored width (default 400)")
+    rc.add_argument("--height", type=int, help=".dat frame height (default: guessed from the "
+                                               "file size among known sensors, with a warning)")
+    rc.add_argument("--width", type=int, help=".dat stored width (default: guessed, as --height)")
+    rc.add_argument("--partial", choices=("error", "drop"), default="error",
+                    help=".dat whose size is not whole frames: error (default), or drop the "
+                         "last partial frame")
     rc.add_argument("--head-columns", type=int, default=0, help=".dat head columns to drop")
     rc.add_argument("--no-flip", action="store_true",
                     help=".dat stored top-down (default: upside down, PKU convention)")
@@ -398,8 +402,8 @@ def _reconstruct_into(args, written: list, used: dict) -> None:
         from spikejdd.capture import centred_window
         from spikesim.io import open_dat
 
-        cap = open_dat(src, args.height or 250, args.width or 400, flip=not args.no_flip,
-                       head_columns=args.head_columns, cfa=args.cfa)
+        cap = open_dat(src, args.height, args.width, flip=not args.no_flip,
+                       head_columns=args.head_columns, partial=args.partial, cfa=args.cfa)
         if args.cfa is None:
             print(f"spikejdd reconstruct: note: {src.name} records no colour filter: read as "
                   "monochrome (--cfa RGGB, or the sensor's pattern, for a Bayer capture)",

@@ -32,3 +32,25 @@ def test_window_crop_and_pattern():
         CaptureWindows(cap, centers=[5], window=39)
     with pytest.raises(SpikeSimValueError, match="window"):
         centred_window(cap, 150, 400)
+
+
+def test_reconstruct_guesses_a_dat_size_and_takes_partial_drop(tmp_path, capsys):
+    """A .dat's size is guessed as spikesim guesses it (with a warning), and a capture
+    cut mid-frame is read with --partial drop, the option its error names."""
+    from spikejdd.cli import main
+    from spikesim.io import write_dat
+
+    rng = np.random.default_rng(0)
+    write_dat(tmp_path / "cap.dat", (rng.random((60, 250, 400)) < 0.1).astype(np.uint8))
+    cut = tmp_path / "cut.dat"
+    cut.write_bytes((tmp_path / "cap.dat").read_bytes()[:-100])
+    base = ["reconstruct", "--centers", "25", "--methods", "tfp+bilinear", "--quiet"]
+    assert main([*base, str(tmp_path / "cap.dat"), "--out", str(tmp_path / "a")]) == 0
+    assert "assumed 400x250" in capsys.readouterr().err
+    assert main([*base, str(cut), "--height", "250", "--width", "400",
+                 "--out", str(tmp_path / "b")]) == 1
+    assert "--partial drop" in capsys.readouterr().err and not (tmp_path / "b").exists()
+    assert main([*base, str(cut), "--height", "250", "--width", "400", "--partial", "drop",
+                 "--out", str(tmp_path / "c")]) == 0
+    assert "partial frame is ignored" in capsys.readouterr().err
+    assert len(list((tmp_path / "c").glob("*.png"))) == 1
