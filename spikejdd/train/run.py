@@ -14,6 +14,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from spikejdd.train.config import TrainConfig
+from spikesim.cli_guard import Terminated, deferred_stops
 from spikesim.errors import SpikeSimTypeError, bad_value
 
 __all__ = ["train"]
@@ -22,6 +23,23 @@ __all__ = ["train"]
 def _append(path, row: dict) -> None:
     with open(path, "a", encoding="utf-8") as fh:
         fh.write(json.dumps(row) + "\n")
+
+
+def _keep_rows_up_to(path: Path, step: int) -> None:
+    """Drop the rows of the JSON-lines log ``path`` whose ``step`` is beyond ``step``,
+    and a last row cut short by a kill."""
+    if not path.exists():
+        return
+    rows = path.read_text(encoding="utf-8").splitlines()
+    kept = []
+    for row in rows:
+        try:
+            if json.loads(row).get("step", 0) <= step:
+                kept.append(row)
+        except ValueError:
+            continue
+    if len(kept) != len(rows):
+        path.write_text("".join(r + "\n" for r in kept), encoding="utf-8")
 
 
 def _first_missing(path: Path) -> Path | None:
@@ -69,11 +87,19 @@ def train(cfg: TrainConfig | dict) -> dict:
     out, main = tr.out, tr.main
     if main:
         (out / "run.json").write_text(json.dumps(tr.run_info, indent=1, default=str))
+        for log in ("log.jsonl", "bench.jsonl"):  # rows of steps the checkpoint does not hold
+            _keep_rows_up_to(out / log, tr.state.step)  # (a run killed after them) go
     t_start = time.time()
     start_step, start_minutes = tr.state.step, tr.state.minutes
 
     def minutes() -> float:  # the run's training time, over every call
         return start_minutes + (time.time() - t_start) / 60
+
+    def saved_step() -> int:  # the step last.pt holds (-1: none)
+        from spikejdd.models.checkpoints import load_checkpoint
+
+        path = out / "last.pt"
+        return int(load_checkpoint(path)["train"]["step"]) if path.exists() else -1
 
     bar = tqdm(total=cfg.steps, initial=tr.state.step, desc="train",
                disable=not (main and cfg.progress))
@@ -81,11 +107,12 @@ def train(cfg: TrainConfig | dict) -> dict:
     batches = tr.batches() if tr.state.step < cfg.steps else iter(())
     try:
         for batch in batches:
-            lv = tr.step(batch)
-            st = tr.state
+            with deferred_stops():  # a stop waits for the step's end: the state saved is whole
+                lv = tr.step(batch)
+                st = tr.state
+                running = lv if running is None else 0.9 * running + 0.1 * lv
+                st.running_loss = running
             seen += batch["spikes"].shape[0] * tr.world
-            running = lv if running is None else 0.9 * running + 0.1 * lv
-            st.running_loss = running
             if main and st.step % cfg.log_every == 0:
                 now = time.time()
                 psnr = -10 * math.log10(max(running, 1e-12))
@@ -120,12 +147,16 @@ def train(cfg: TrainConfig | dict) -> dict:
                                   f"{row['best_classical']} {row['classical_psnr']:.2f} dB, "
                                   f"delta {row['delta_db']:+.2f} dB")
                 break
-    except BaseException as exc:
-        if main and not isinstance(exc, Exception) and (out / "last.pt").exists():
+    except (KeyboardInterrupt, Terminated):
+        if main:  # a stop (Ctrl-C, SIGTERM): keep the steps done, say how to go on
             bar.leave = False
-            bar.close()  # a stop (Ctrl-C, SIGTERM): say what is kept and how to go on
-            print(f"kept {out / 'last.pt'} (the last checkpoint before the stop): "
-                  "--resume auto (resume='auto') continues from it", file=sys.stderr)
+            bar.close()
+            if tr.state.step > saved_step():
+                tr.state.minutes = minutes()
+                tr.save("last.pt")
+            if (out / "last.pt").exists():
+                print(f"kept {out / 'last.pt'} (step {saved_step()}): --resume auto "
+                      "(resume='auto') continues from it", file=sys.stderr)
         raise
     if hasattr(batches, "close"):
         batches.close()

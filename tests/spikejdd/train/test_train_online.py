@@ -299,20 +299,37 @@ def test_online_training_refuses_data_it_would_ignore(tmp_path, capsys):
     assert not (tmp_path / "r").exists()
 
 
-def test_a_stopped_run_says_which_checkpoint_is_kept(tmp_path, capsys, monkeypatch):
-    """Ctrl-C during training keeps the last checkpoint and says how to go on from it."""
+def test_a_stopped_run_keeps_its_steps_and_resumes_as_if_uninterrupted(tmp_path, capsys,
+                                                                        monkeypatch):
+    """Ctrl-C during a step waits for the step's end, then last.pt is saved at that step
+    (not the last scheduled checkpoint) and the message says how to go on; the resumed
+    run ends bit-identical to an uninterrupted one, its log without repeated steps."""
+    import os
+    import signal
+
     from spikejdd.train.trainer import Trainer
 
     real = Trainer.step
 
-    def step_then_stop(self, batch):
-        loss = real(self, batch)
-        if self.state.step == 3:
-            raise KeyboardInterrupt
-        return loss
+    def step_with_ctrl_c(self, batch):
+        if self.state.step == 2:  # Ctrl-C arrives in the middle of step 3
+            os.kill(os.getpid(), signal.SIGINT)
+        return real(self, batch)
 
-    monkeypatch.setattr(Trainer, "step", step_then_stop)
-    assert _chunk(tmp_path / "run", 6, ["--checkpoint-every", "2"]) == 130
+    monkeypatch.setattr(Trainer, "step", step_with_ctrl_c)
+    assert _chunk(tmp_path / "run", 6, ["--checkpoint-every", "100"]) == 130
     err = capsys.readouterr().err
-    assert f"kept {tmp_path / 'run' / 'last.pt'}" in err and "--resume auto" in err
-    assert load_checkpoint(tmp_path / "run" / "last.pt")["train"]["step"] == 2
+    assert f"kept {tmp_path / 'run' / 'last.pt'} (step 3)" in err and "--resume auto" in err
+    assert load_checkpoint(tmp_path / "run" / "last.pt")["train"]["step"] == 3
+    monkeypatch.setattr(Trainer, "step", real)
+    with open(tmp_path / "run" / "log.jsonl", "a") as log:  # as a run killed after step 4 left it
+        log.write('{"step": 4, "psnr_linear": 1.0}\n{"step": 5, "psn')
+    assert _chunk(tmp_path / "run", 6) == 0
+    assert _chunk(tmp_path / "full", 6) == 0
+    a = load_checkpoint(tmp_path / "full" / "last.pt")
+    b = load_checkpoint(tmp_path / "run" / "last.pt")
+    for k in a["state_dict"]:
+        torch.testing.assert_close(a["state_dict"][k], b["state_dict"][k], rtol=0, atol=0, msg=k)
+    rows = [json.loads(x) for x in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
+    steps = [r["step"] for r in rows]
+    assert steps == sorted(set(steps)), steps
