@@ -30,7 +30,6 @@ import errno
 import os
 import signal
 import sys
-import threading
 import warnings
 from collections.abc import Callable
 
@@ -38,8 +37,8 @@ from spikesim._validate import check_int, check_real, is_int, is_real
 from spikesim.errors import SpikeSimError, bad_value
 
 __all__ = ["MAX_READOUTS", "as_option", "check_cli_numbers", "debug_requested",
-           "deferred_stops", "install_signal_handlers", "OneLineParser", "parse_size",
-           "run_guarded", "Terminated"]
+           "install_signal_handlers", "OneLineParser", "parse_size", "run_guarded",
+           "Terminated"]
 
 EXIT_ERROR = 1
 EXIT_BUG = 70
@@ -70,28 +69,6 @@ def install_signal_handlers() -> None:
         signal.signal(signal.SIGTERM, _on_sigterm)
     with contextlib.suppress(ValueError, OSError, AttributeError):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-
-
-@contextlib.contextmanager
-def deferred_stops():
-    """Hold Ctrl-C and SIGTERM while the block runs (a unit of work that must end
-    whole, such as one training step): a stop that arrives inside it is raised,
-    by the handler that was there, when the block ends.  Outside the main thread
-    (where signals cannot be handled) the block just runs."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    held: list[int] = []
-    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    for s in before:
-        signal.signal(s, lambda signum, frame: held.append(signum))
-    try:
-        yield
-    finally:
-        for s, handler in before.items():
-            signal.signal(s, handler)
-        if held:
-            signal.raise_signal(held[0])
 
 
 def debug_requested(argv: list[str] | None) -> bool:

@@ -14,8 +14,9 @@ from pathlib import Path
 from tqdm import tqdm
 
 from spikejdd.train.config import TrainConfig
-from spikesim.cli_guard import Terminated, deferred_stops
+from spikesim.cli_guard import Terminated
 from spikesim.errors import SpikeSimTypeError, bad_value
+from spikesim.stops import deferred_stops
 
 __all__ = ["train"]
 

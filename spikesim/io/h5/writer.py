@@ -34,6 +34,7 @@ from spikesim.io.h5.format import (
     spike_chunks,
     versions,
 )
+from spikesim.stops import deferred_stops
 
 __all__ = ["H5Writer", "write_h5"]
 
@@ -96,8 +97,9 @@ class H5Writer:
             # a checksum on every metadata block, the chunk index included.  With the 1.8
             # layout (B-tree v1 chunk index, unchecked) a flipped bit in the index made a
             # chunk read as zeros without any error.
-            self._file = h5py.File(self._guard, "w", libver=("v110", "latest"))
-            self._create()
+            with deferred_stops():  # (every HDF5 call: see spikesim.stops)
+                self._file = h5py.File(self._guard, "w", libver=("v110", "latest"))
+                self._create()
             self._check_io()
         except OSError as exc:
             err = exc if isinstance(exc, SpikeSimFileError) else write_error(self.path, exc)
@@ -131,7 +133,8 @@ class H5Writer:
         try:
             if self._file is not None:
                 try:
-                    self._file.close()
+                    with deferred_stops():
+                        self._file.close()
                 except Exception:  # noqa: BLE001 - the file is being discarded
                     pass
         finally:
@@ -161,10 +164,9 @@ class H5Writer:
                 raise bad_value("clean_packed.shape", clean_packed.shape, f"{packed.shape}")
         t0, t1 = self.n_readouts, self.n_readouts + packed.shape[0]
         pairs = [("spikes", packed)] + ([("clean_spikes", clean_packed)] if self.clean else [])
-        for name, arr in pairs:
-            ds = self._file[name]
-            ds.resize(t1, axis=0)
-            ds[t0:t1] = arr
+        with deferred_stops():
+            for name, arr in pairs:
+                _extend(self._file[name], t0, t1, arr)
         self.n_readouts = t1
         self._check_io()
 
@@ -180,12 +182,11 @@ class H5Writer:
             raise bad_value("gt_index", int(idx.min()), "readout indices >= 0")
         if gt.size and not np.isfinite(gt).all():
             raise bad_value("gt", "non-finite values", "finite linear RGB")
-        k0 = self._file["gt"].shape[0]
-        k1 = k0 + gt.shape[0]
-        for name, arr, dtype in (("gt", gt, np.float32), ("gt_index", idx, np.int64)):
-            ds = self._file[name]
-            ds.resize(k1, axis=0)
-            ds[k0:k1] = arr.astype(dtype, copy=False)
+        with deferred_stops():
+            k0 = self._file["gt"].shape[0]
+            k1 = k0 + gt.shape[0]
+            for name, arr, dtype in (("gt", gt, np.float32), ("gt_index", idx, np.int64)):
+                _extend(self._file[name], k0, k1, arr.astype(dtype, copy=False))
         self._check_io()
 
     def _finish(self) -> None:
@@ -232,8 +233,9 @@ class H5Writer:
             self._abort(exc)
             return False
         try:
-            self._finish()
-            self._file.close()
+            with deferred_stops():
+                self._finish()
+                self._file.close()
             self._file = None
             self._check_io()
             self._guard.close()
@@ -243,6 +245,14 @@ class H5Writer:
             raise
         self._ctx.__exit__(None, None, None)
         return False
+
+
+def _extend(ds, i0: int, i1: int, arr) -> None:
+    """Grow ``ds`` to ``i1`` rows along axis 0 and write ``arr`` at ``i0:i1``.  (A
+    function of its own, so the dataset's handle, whose closing writes its cached
+    chunks, is released before the caller's :func:`deferred_stops` block ends.)"""
+    ds.resize(i1, axis=0)
+    ds[i0:i1] = arr
 
 
 def _progress(total: int, enabled: bool, desc: str):

@@ -1,0 +1,41 @@
+"""Stops (Ctrl-C, SIGTERM) held while a unit of work must end whole.
+
+Python runs a signal's handler between two bytecodes of the main thread, so
+the exception of a stop can be raised inside a callback that C code made into
+Python.  HDF5 writes through such callbacks (h5py's ``fileobj`` driver, see
+:mod:`spikesim.io._guard`): an exception there is swallowed ("Exception
+ignored in ... ObjectID.__dealloc__"), the write fails under HDF5, and the file
+goes on as if it had been written, with chunks of zeros, or the process
+crashes.  A training step stopped halfway would leave weights and optimizer
+out of step.  :func:`deferred_stops` holds the stop until the block ends, then
+raises it where Python code can clean up.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+__all__ = ["deferred_stops"]
+
+
+@contextlib.contextmanager
+def deferred_stops():
+    """Hold Ctrl-C and SIGTERM while the block runs: a stop that arrives inside it
+    is raised, by the handler that was there, when the block ends.  Outside the
+    main thread (where signals cannot be handled) the block just runs."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    for s in before:
+        signal.signal(s, lambda signum, frame: held.append(signum))
+    try:
+        yield
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)
+        if held:
+            signal.raise_signal(held[0])
