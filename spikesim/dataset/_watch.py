@@ -2,13 +2,14 @@
 
 A spawned worker runs :func:`init_worker` first.  It installs the command
 line's signal handling (SIGTERM raises, so a file being written is removed
-on the way out) and starts a daemon thread that polls the parent's process
-id.  When the parent is gone (``kill -9``, a crash) the thread forbids every
-further rename into place (:func:`spikesim.io.atomic.set_rename_guard`),
-interrupts the task with SIGTERM and, should that not end the process within
-:data:`GRACE_S` seconds (a long kernel call), exits outright.  Nothing is
-renamed into the output folder after the parent has died, and no worker
-outlives it by more than a few seconds.
+on the way out; Ctrl-C is left to the parent, which stops its workers) and
+starts a daemon thread that polls the parent's process id.  When the parent
+is gone (``kill -9``, a crash) the thread forbids every further rename into
+place (:func:`spikesim.io.atomic.set_rename_guard`), interrupts the task with
+SIGTERM and, should that not end the process within :data:`GRACE_S` seconds
+(a long kernel call), exits outright.  Nothing is renamed into the output
+folder after the parent has died, and no worker outlives it by more than a
+few seconds.
 """
 
 from __future__ import annotations
@@ -66,6 +67,11 @@ def init_worker(parent_pid: int) -> None:
 
     _parent_pid = int(parent_pid)
     install_signal_handlers()
+    # Ctrl-C reaches the whole process group; the parent stops its workers itself
+    # (SIGTERM, after cancelling what is queued).  A worker that Ctrl-C stopped in the
+    # middle of a result's send could leave the others waiting for the result queue
+    # forever, and the parent waiting for them.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     set_rename_guard(_refuse_rename)
     if os.getppid() != _parent_pid:  # died while this worker started
         os._exit(1)

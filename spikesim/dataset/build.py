@@ -307,13 +307,19 @@ def _record_finished(pending: list[dict], out: Path, summary: BuildSummary) -> N
         summary.px_readouts += px
 
 
+#: Seconds a stopped worker gets to remove its temporary file before it is killed.
+STOP_GRACE_S = 10.0
+
+
 def _new_pool(workers: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
                                initializer=init_worker, initargs=(os.getpid(),))
 
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
-    """Cancel what is queued and SIGTERM the workers (each removes its temporary file)."""
+    """Cancel what is queued and SIGTERM the workers (each removes its temporary file);
+    a worker still alive after :data:`STOP_GRACE_S` seconds is killed, so the stop
+    cannot hang on it (its temporary is then removed by the next build)."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
@@ -321,7 +327,10 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
             p.terminate()
     for p in procs:
         with contextlib.suppress(Exception):
-            p.join(timeout=10)
+            p.join(timeout=STOP_GRACE_S)
+            if p.is_alive():
+                p.kill()
+                p.join(timeout=5)
 
 
 def _write_summary(path: Path, summary: BuildSummary) -> None:

@@ -226,3 +226,24 @@ def test_a_stop_inside_an_hdf5_write_leaves_no_file_with_zeros(tmp_path, monkeyp
     ss.io.write_h5(out, stream, block_readouts=64)  # and a whole write reads back whole
     np.testing.assert_array_equal(ss.io.open_h5(out).read_packed(), stream.packed)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def test_ctrl_c_of_a_workers_build_stops_it_whole(tmp_path):
+    """Ctrl-C at a terminal reaches the whole process group. The workers leave the stop
+    to the parent, which stops them: one line, exit 130, no temporary left, no worker
+    left, and no hang (Ctrl-C in a worker sending its result could leave the others
+    waiting for the result queue forever)."""
+    manifest = write_manifest(tmp_path / "m.toml", count=6, window=601, samples=6,
+                              size=(96, 96))
+    proc = subprocess.Popen(cli_command("spikesim", "dataset", manifest, "--out", "ds",
+                                        "--workers", "2"), cwd=tmp_path, env=cli_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    _wait_for_temp(proc, tmp_path / "ds", timeout=240)
+    kids = children_of(proc.pid)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=90)
+    assert proc.returncode == 130 and "interrupted" in err, err[-2000:]
+    assert "Traceback" not in err
+    _wait_for(lambda: not any(alive(k) for k in kids), timeout=30, what="workers to exit")
+    assert not no_temps(tmp_path / "ds")
