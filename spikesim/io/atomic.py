@@ -7,10 +7,11 @@ names are on the same file system, which a sibling temporary guarantees.
 
 A temporary left by a process killed outright (``kill -9``, power loss) is
 *stale*: its writer's process id is no longer alive and no process holds the
-advisory lock the writers keep on it (:func:`lock_temp`).  Every new write of
-a name removes that name's stale temporaries first, and
-:func:`remove_stale_temps` clears a whole folder; a temporary of a live writer
-(another run into the same folder) is never touched.
+advisory lock the writers keep on it (:func:`lock_temp`).  Every new write
+into a folder removes the folder's stale temporaries first
+(:func:`remove_stale_temps`), whatever their name, so a killed run leaves none
+behind for long; a temporary of a live writer (another run into the same
+folder) is never touched.
 
 A process may register a check that runs just before each rename
 (:func:`set_rename_guard`): a dataset worker whose parent has died raises
@@ -182,7 +183,7 @@ def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Pa
         raise SpikeSimFileError(f"output path {str(final)!r} is a folder, expected a file name")
     if not overwrite and final.exists():
         raise SpikeSimFileError(f"output file {str(final)!r} exists (pass overwrite=True)")
-    remove_stale_temps(parent, final.name)
+    remove_stale_temps(parent)
     tmp = temp_name_for(final)
     _active.add(tmp)
     try:

@@ -66,17 +66,17 @@ def test_sigterm_of_a_writer_removes_its_file_and_says_so(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
-def test_kill9_of_a_writer_leaves_a_temp_that_the_next_write_removes(tmp_path):
+def test_kill9_of_a_writer_leaves_a_temp_that_the_next_write_into_its_folder_removes(tmp_path):
     proc = _start("spikesim", "simulate", *LONG, "x.h5", cwd=tmp_path)
     _wait_for_temp(proc, tmp_path)
     proc.kill()
     proc.wait(timeout=30)
     assert no_temps(tmp_path) and not (tmp_path / "x.h5").exists()  # nothing final
     done = run_cli("spikesim", "simulate", "astronaut", "--size", "8x8", "--readouts", "20",
-                   "--out", "x.h5", cwd=tmp_path)
+                   "--out", "other.h5", cwd=tmp_path)  # a write of any name into the folder
     assert done.returncode == 0, done.stderr[-2000:]
-    assert not no_temps(tmp_path) and (tmp_path / "x.h5").is_file()
-    assert all(r["ok"] for r in verify(tmp_path / "x.h5"))
+    assert not no_temps(tmp_path) and (tmp_path / "other.h5").is_file()
+    assert all(r["ok"] for r in verify(tmp_path / "other.h5"))
 
 
 def _dataset(tmp_path, count=6, readouts=(601, 6)):
