@@ -122,6 +122,10 @@ def run(args) -> int:
 
     if not args.dst.lower().endswith((".dat", ".h5", ".hdf5")):
         raise bad_value("DST", args.dst, "a path ending in .dat, .h5 or .hdf5")
+    if Path(args.dst).exists() and Path(args.src).exists() and \
+            Path(args.dst).resolve() == Path(args.src).resolve():
+        raise bad_value("DST", args.dst, "another file than SRC: the source would be replaced "
+                        "by its converted copy")
     from spikesim.cli_guard import as_option
     from spikesim.errors import SpikeSimValueError
     from spikesim.io import compression_kwargs

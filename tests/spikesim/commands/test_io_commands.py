@@ -95,6 +95,11 @@ def test_convert_errors_exit_nonzero_without_output(tmp_path, h5file, capsys):
     (tmp_path / "bad.dat").write_bytes(b"\x00" * 1001)
     assert main(["convert", str(tmp_path / "bad.dat"), str(tmp_path / "y.h5")]) == 1
     assert "cannot guess" in capsys.readouterr().err
+    # the source given again as the output (another spelling of it) is not replaced
+    before = path.read_bytes()
+    assert main(["convert", str(path), str(path.parent / "." / path.name), "--start", "10"]) == 1
+    assert "another file than SRC" in capsys.readouterr().err
+    assert path.read_bytes() == before
 
 
 def test_preview_png_and_gif(tmp_path, h5file, capsys):
