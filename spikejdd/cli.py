@@ -291,9 +291,14 @@ def _train(args) -> int:
             synthesize(data, n_sequences=args.synthesize, progress=not args.quiet)
     from spikesim.io import resolve_dataset
 
-    for key, split in (("data", args.split), ("eval_data", args.eval_split)):
+    for key, split, flag in (("data", args.split, "--split"),
+                             ("eval_data", args.eval_split, "--eval-split")):
         if cfg.get(key) and (split or Path(cfg[key]).exists()):  # a dataset root -> its split
-            cfg[key] = str(resolve_dataset(cfg[key], split))
+            try:
+                cfg[key] = str(resolve_dataset(cfg[key], split))
+            except SpikeSimError as exc:  # name this option's split flag
+                named = as_option(exc, {"split": flag})
+                raise type(named)(str(named).replace("--split NAME", f"{flag} NAME")) from None
     flags = {name: "--" + name.replace("_", "-") for name in _TRAIN_FIELDS
              if getattr(args, name, None) is not None}
     if args.init:  # the weights resolver names its parameter ``weights``
@@ -301,7 +306,13 @@ def _train(args) -> int:
     if args.clips:
         flags["clips"] = "--clip"
     try:
-        summary = train(TrainConfig.from_dict(cfg))
+        config = TrainConfig.from_dict(cfg)
+        config.validate()
+        if (config.validation_kind() == "files" and not config.eval_data
+                and os.environ.get("RANK", "0") == "0"):
+            print("spikejdd train: note: validating on the training data (--eval-data names "
+                  "a held-out set)", file=sys.stderr)
+        summary = train(config)
     except SpikeSimError as exc:  # name the flag the user gave, not the config field
         raise as_option(exc, flags) from None
     if os.environ.get("RANK", "0") != "0":

@@ -121,10 +121,15 @@ def _check_clips(clips) -> None:
 
 def config_difference(saved: dict, wanted: dict) -> str:
     """The model fields where a checkpoint's configuration ``saved`` differs from
-    this run's ``wanted``: ``"it has width=32 where this run has 64, …"``."""
+    this run's ``wanted``: ``"it has width=32 where this run has 64, …"``, led by
+    the preset it is when it is one (``"they are --model lite weights; …"``)."""
+    from spikejdd.train.config import MODEL_PRESETS
+
     keys = [k for k in sorted(set(saved) | set(wanted)) if saved.get(k) != wanted.get(k)]
-    return "it has " + ", ".join(f"{k}={saved.get(k)!r} where this run has {wanted.get(k)!r}"
-                                 for k in keys)
+    preset = next((name for name, c in MODEL_PRESETS.items() if c.to_dict() == saved), None)
+    lead = f"they are --model {preset} weights; " if preset else ""
+    return lead + "it has " + ", ".join(
+        f"{k}={saved.get(k)!r} where this run has {wanted.get(k)!r}" for k in keys)
 
 
 class Trainer:

@@ -117,6 +117,28 @@ def test_resume_with_other_settings_is_refused(tiny_data, tmp_path, monkeypatch)
     assert done["steps_done"] == 2
 
 
+def test_train_says_where_it_validates_and_names_its_split_flags(tiny_data, tmp_path,
+                                                                 capsys):
+    """Without --eval-data the run validates on its training data: a note says so; a
+    dataset root with several splits given as --eval-data names --eval-split."""
+    root, _ = tiny_data
+    both = tmp_path / "root"
+    both.mkdir()
+    for split in ("train", "eval"):
+        (both / split).symlink_to(root, target_is_directory=True)
+    base = ["train", "--model", "lite", "--steps", "1", "--batch-size", "2", "--crop", "12",
+            "--quiet", "--threads", "1"]
+    assert main([*base, "--data", str(both), "--split", "train", "--eval-data", str(both),
+                 "--out", str(tmp_path / "a")]) == 1
+    err = capsys.readouterr().err
+    assert "pick one with --eval-split NAME" in err and len(err.strip().splitlines()) == 1
+    cfg = tmp_path / "tiny.json"
+    cfg.write_text(json.dumps({"model_overrides": TINY.to_dict(), "eval_frames": 2}))
+    assert main([*base, "--config", str(cfg), "--data", str(both), "--split", "train",
+                 "--out", str(tmp_path / "b")]) == 0
+    assert "note: validating on the training data" in capsys.readouterr().err
+
+
 def test_init_starts_from_weights_with_a_fresh_schedule(tiny_data, tmp_path):
     root, _ = tiny_data
     train(_cfg(root, tmp_path / "a", steps=2))

@@ -11,7 +11,7 @@ import torch
 
 from spikejdd.cli import main
 from spikejdd.models import load_checkpoint
-from spikejdd.train import TEST_PICTURES, TRAIN_PICTURES, VALIDATION_PICTURES, TrainConfig
+from spikejdd.train import TEST_PICTURES, TRAIN_PICTURES, VALIDATION_PICTURES, TrainConfig, train
 from spikejdd.train.online import OnlineSpikeDataset, draw_noise, simulate_sample
 from spikejdd.train.pictures import PICTURES, picture_path
 from spikejdd.train.scenes import SLOW_PX_S, draw_scene, draw_speed
@@ -333,3 +333,14 @@ def test_a_stopped_run_keeps_its_steps_and_resumes_as_if_uninterrupted(tmp_path,
     rows = [json.loads(x) for x in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
     steps = [r["step"] for r in rows]
     assert steps == sorted(set(steps)), steps
+
+
+def test_init_with_weights_of_another_preset_names_it(tmp_path):
+    """Shipped lite weights given to a run of the default model: the error says which
+    preset they are, not only the fields that differ; nothing is left behind."""
+    cfg = TrainConfig(online=True, init="sjdd-lite", out=str(tmp_path / "run"), steps=1,
+                      progress=False)
+    with pytest.raises(SpikeSimValueError, match=r"init='sjdd-lite'.*they are --model lite "
+                       r"weights; it has"):
+        train(cfg)
+    assert not (tmp_path / "run").exists()
