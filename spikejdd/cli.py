@@ -63,7 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--size", type=_size, default=(64, 96), help="sweep frame size HxW")
     ev.add_argument("--frames-per-scene", type=int, default=2)
     ev.add_argument("--seed", type=int, default=0)
-    ev.add_argument("--out", default="evaluation", help="output path stem (.json/.md/.png)")
+    ev.add_argument("--out", default="evaluation",
+                    help="output path stem (.json/.md/.png), or a folder to hold evaluation.*")
     ev.add_argument("--quiet", action="store_true", help="no progress bars")
     _runtime_options(ev)
     _ensemble_option(ev)

@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 import warnings
@@ -31,7 +32,7 @@ from tqdm import tqdm
 from spikejdd.metrics import score
 from spikejdd.registry import call_method, get_method
 from spikejdd.runtime import describe_machine, machine_info
-from spikesim.errors import SpikeSimError, bad_value
+from spikesim.errors import SpikeSimError, SpikeSimValueError, bad_value
 from spikesim.srgb import linear_to_srgb8
 
 __all__ = ["Frame", "frames_from_dataset", "frames_from_simulation", "run", "sweep",
@@ -125,10 +126,11 @@ def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1)
         _check_context(context)
     ds = open_dataset(path)
     frames = []
-    left_out, widest = 0, None
+    left_out, widest, any_gt = 0, None, False
     for name in ds.names:
         seq = ds.sequence(name)
         n = seq.n_readouts
+        any_gt = any_gt or len(seq.gt_index) > 0
         fits = sorted((_fit(int(g), n) for g in seq.gt_index if 0 <= g < n), reverse=True)
         wanted = min(per_sequence, len(fits))
         length = context
@@ -151,6 +153,10 @@ def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1)
                                 rate, seq.read_gt(k), dict(group)))
         if hasattr(seq, "close"):
             seq.close()
+    if not any_gt:
+        raise SpikeSimValueError(f"{path} holds no ground truth, which evaluate scores against "
+                                 "(a capture converted from .dat has none): spikejdd "
+                                 "reconstruct makes images without it")
     if not frames:
         raise bad_value("context", context, f"a window that fits some GT readout in {path}")
     if left_out:
@@ -498,9 +504,12 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
     label and per motion, and — given ``frames`` and the ``outputs`` of
     :func:`run` — up to ``panels`` image panels (ground truth and every
     method on the same crop).  Methods in ``result["failed"]`` are listed
-    with their errors and left out of the tables.  Returns the paths written.
+    with their errors and left out of the tables.  A ``stem`` that is a
+    folder (it exists, or ends with ``/``) holds them as ``evaluation.*``.
+    Returns the paths written.
     """
-    stem = Path(stem)
+    is_folder = Path(stem).is_dir() or str(stem).endswith(("/", os.sep))
+    stem = Path(stem) / "evaluation" if is_folder else Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     torch_used = "torch" in sys.modules  # before machine_info, which imports it to describe it
     machine = machine_info()

@@ -136,3 +136,37 @@ def test_report_says_torch_was_not_used_by_classical_methods(data_dir, tmp_path)
     md = out.with_suffix(".md").read_text()
     assert "torch threads per process: torch not used" in md
     assert "thread(s)" not in md.split("Device:")[0]  # nor in the machine line
+
+
+def test_a_file_without_ground_truth_is_named_as_such(tmp_path, capsys):
+    """A stream without GT (a converted .dat) cannot be scored: the error says so."""
+    import spikesim as ss
+    from spikejdd.cli import main
+
+    sensor = ss.Sensor(height=16, width=16, cfa="RGGB")
+    stream = ss.simulate(ss.scenes.procedural("astronaut", size=(16, 16)), sensor, 60,
+                         gt_readouts=[])
+    ss.io.write_h5(tmp_path / "nogt.h5", stream)
+    assert main(["evaluate", "--data", str(tmp_path / "nogt.h5"), "--methods", "tfp+bilinear",
+                 "--out", str(tmp_path / "r"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "holds no ground truth" in err and "context=" not in err
+
+
+def test_an_out_folder_holds_the_report(tmp_path, capsys):
+    """--out naming a folder (existing, or ending with /) writes evaluation.* inside it,
+    not a report beside it."""
+    import spikesim as ss
+    from spikejdd.cli import main
+
+    sensor = ss.Sensor(height=16, width=16, cfa="RGGB")
+    stream = ss.simulate(ss.scenes.procedural("astronaut", size=(16, 16)), sensor, 60)
+    ss.io.write_h5(tmp_path / "s.h5", stream)
+    (tmp_path / "there").mkdir()
+    for out in (str(tmp_path / "there"), str(tmp_path / "new") + "/"):
+        assert main(["evaluate", "--data", str(tmp_path / "s.h5"), "--methods", "tfp+bilinear",
+                     "--out", out, "--quiet", "--repeats", "1"]) == 0
+        folder = tmp_path / out.rstrip("/").split("/")[-1]
+        assert sorted(p.name for p in folder.glob("evaluation.*")) == [
+            "evaluation.json", "evaluation.md", "evaluation.png"]
+    assert not (tmp_path / "there.json").exists()
