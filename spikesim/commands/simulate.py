@@ -128,6 +128,9 @@ def run(args) -> int:
             raise bad_value("--speed/--scene-set", args.speed or args.scene_set,
                             "none for a video (they set a built-in scene's motion and look)")
         scene = ss.scenes.video(args.scene, fps=args.fps, resize=sensor.shape)
+    elif "/" in args.scene or Path(args.scene).suffix:  # a path, not a scene's name
+        raise SpikeSimFileError(f"SCENE {args.scene!r}: no such video file or frame folder "
+                                "(built-in scene names: spikesim scenes)")
     else:
         try:
             scene = ss.scenes.procedural(args.scene, motion=args.motion, size=sensor.shape,

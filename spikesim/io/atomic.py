@@ -176,6 +176,9 @@ def atomic_path(final: str | os.PathLike, overwrite: bool = True) -> Iterator[Pa
     overwrite = check_flag("overwrite", overwrite)
     final = check_path_type("final", final)
     parent = final.parent if str(final.parent) else Path(".")
+    if parent.exists() and not parent.is_dir():
+        raise SpikeSimFileError(f"output folder {str(parent)!r} is a file, not a folder: give "
+                                "a path in a folder")
     if not parent.is_dir():
         raise SpikeSimFileError(f"output folder {str(parent)!r} does not exist: create it "
                                 "first (mkdir -p), or give a path in an existing folder")

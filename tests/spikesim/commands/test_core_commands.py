@@ -168,3 +168,17 @@ def test_simulate_passes_scene_options_and_names_the_flags(tmp_path, capsys):
                      str(tmp_path / "g.h5")]) == 1
         assert needle in capsys.readouterr().err
     assert not (tmp_path / "g.h5").exists()
+
+
+def test_simulate_names_a_missing_video_and_an_output_folder_that_is_a_file(tmp_path, capsys):
+    """A SCENE that is a path to nothing is a missing file, not an unknown scene name; an
+    --out whose folder is a file says so."""
+    (tmp_path / "afile").write_text("x")
+    for scene, out, message in (
+            ("videos/nothere.mp4", "x.h5", "SCENE 'videos/nothere.mp4': no such video file or "
+             "frame folder"),
+            ("astronaut", "afile/a.h5", "is a file, not a folder")):
+        assert main(["simulate", scene, "--readouts", "5", "--size", "8x8",
+                     "--out", str(tmp_path / out)]) == 1
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1, err
