@@ -71,8 +71,8 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
     left_out = [float(v) for v in asked if v not in lv]
     if lv.size == 0:
         raise bad_value("levels", levels, "some radiance with 0 < r·I < 1 (r = full_scale_rate)")
-    paper = isinstance(sensor.noise, PaperNoise)
-    kappa2, sigma_q2 = theory.temporal_terms(sensor.noise, sensor.full_scale_rate)
+    paper, r = isinstance(sensor.noise, PaperNoise), sensor.full_scale_rate
+    kappa2, sigma_q2 = theory.temporal_terms(sensor.noise, r)
     loss = theory.reset_loss(sensor.noise)
     rows = []
     keys = ("mean", "mean_theory", "within_var", "within_var_theory", "pooled_var",
@@ -86,7 +86,6 @@ def isi_statistics(sensor="ideal", levels=DEFAULT_ISI_LEVELS, n_readouts: int = 
         it = tqdm(lv, desc="isi", unit="level")
     for level in it:
         run = simulate_flat(sensor, level, n_readouts, seed, size)
-        r = sensor.full_scale_rate
         q = np.minimum(theory.effective_charge(run.q, sensor.noise, r, level)[0], 1.0)
         if paper:  # its per-readout variance depends on the radiance
             kappa2, sigma_q2 = theory.temporal_terms(sensor.noise, r, level)
