@@ -61,6 +61,17 @@ def compiled_in_this_process() -> bool:
     return False
 
 
+def cache_is_cold(package_dir: Path | None = None) -> bool:
+    """Whether the next simulation compiles its kernels: no numba cache file beside
+    the package's modules yet (the first run after an install or an update, which
+    takes about a minute).  False under a user-set ``NUMBA_CACHE_DIR`` (not known)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return False
+    folder = (package_dir or Path(__file__).parent) / "__pycache__"
+    return not any(folder.glob("*.nbi"))
+
+
+
 def sync_cache(package_dir: Path) -> bool:
     """Remove the numba cache files under ``package_dir`` when its sources
     changed since the last call; returns True when it removed them.  Never

@@ -16,13 +16,16 @@ from __future__ import annotations
 import math
 import os
 import shutil
+import sys
 import warnings
 from pathlib import Path
 
+from spikesim._numba_cache import cache_is_cold
 from spikesim.errors import SpikeSimFileError, SpikeSimValueError
 
-__all__ = ["KEY_FRAME_WARN", "RunawayWorkWarning", "check_free_space", "check_key_frames",
-           "estimate_key_frames", "require_reasonable_key_frames"]
+__all__ = ["KEY_FRAME_WARN", "RunawayWorkWarning", "announce_cold_cache", "cache_is_cold",
+           "check_free_space", "check_key_frames", "estimate_key_frames",
+           "require_reasonable_key_frames"]
 
 #: Key frames above which a simulation is flagged (about a minute of rendering at 256 x 256).
 KEY_FRAME_WARN = 20_000
@@ -86,3 +89,16 @@ def check_free_space(path: str | os.PathLike, nbytes: int) -> None:
             f"{free / 2**30:.3g} GiB free: free space, write elsewhere, ask for fewer readouts, "
             "or pass --force (compression may make it fit)"
         )
+
+
+def _interactive() -> bool:
+    return sys.stderr.isatty()
+
+
+def announce_cold_cache(label: str) -> None:
+    """Say on a terminal's stderr, before the work, that the simulation kernels will be
+    compiled (:func:`cache_is_cold`): about a minute in which a progress bar stays at 0."""
+    if _interactive() and cache_is_cold():
+        print(f"{label}: note: compiling the simulation kernels (the first run after "
+              "installing or updating spikesim: about a minute on 2 cores; later runs load "
+              "them)", file=sys.stderr)

@@ -75,6 +75,9 @@ def run(args) -> int:
     check_int("--workers", args.workers, 1, 1024, unit="processes")
     if args.limit is not None:
         check_int("--limit", args.limit, 1, unit="sequences")
+    from spikesim.workload import announce_cold_cache
+
+    announce_cold_cache("spikesim dataset")
     summary = build_dataset(manifest, args.out, workers=args.workers, scheduler=args.scheduler,
                             dask_local=args.dask_local, limit=args.limit, prune=args.prune)
     print(summary.line())

@@ -182,3 +182,27 @@ def test_simulate_names_a_missing_video_and_an_output_folder_that_is_a_file(tmp_
                      "--out", str(tmp_path / out)]) == 1
         err = capsys.readouterr().err
         assert message in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_cold_kernel_cache_is_announced(tmp_path, capsys, monkeypatch):
+    """The first run after an install compiles for about a minute with a progress bar at
+    0: the commands say so first, on a terminal. The cache is cold when no numba index
+    file is beside the modules (unknown, so not said, under a user's NUMBA_CACHE_DIR)."""
+    from spikesim import workload
+
+    pkg = tmp_path / "pkg"
+    (pkg / "__pycache__").mkdir(parents=True)
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    assert workload.cache_is_cold(pkg)
+    (pkg / "__pycache__" / "_kernels.simulate_chunk-1.py311.nbi").write_bytes(b"")
+    assert not workload.cache_is_cold(pkg)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    assert not workload.cache_is_cold(tmp_path / "empty")
+    monkeypatch.setattr(workload, "cache_is_cold", lambda package_dir=None: True)
+    args = ["simulate", "astronaut", "--readouts", "5", "--size", "8x8"]
+    assert main([*args, "--out", str(tmp_path / "s.h5")]) == 0
+    assert "note: compiling" not in capsys.readouterr().err  # not a terminal: not said
+    monkeypatch.setattr(workload, "_interactive", lambda: True)
+    assert main([*args, "--out", str(tmp_path / "t.h5")]) == 0
+    assert "spikesim simulate: note: compiling the simulation kernels" in \
+        capsys.readouterr().err
