@@ -23,6 +23,7 @@ def register(sub) -> None:
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan with disk and time estimates, write nothing")
     p.add_argument("--list", action="store_true", help="list the built-in manifests")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="value of ${NAME} in the manifest (e.g. REDS=/data/REDS); "
                         "default: the environment variable NAME")
@@ -79,7 +80,8 @@ def run(args) -> int:
 
     announce_cold_cache("spikesim dataset")
     summary = build_dataset(manifest, args.out, workers=args.workers, scheduler=args.scheduler,
-                            dask_local=args.dask_local, limit=args.limit, prune=args.prune)
+                            dask_local=args.dask_local, limit=args.limit, prune=args.prune,
+                            progress=not args.quiet)
     print(summary.line())
     for rec in summary.failures:
         print(f"  failed {rec['file']}: {rec['error']}")

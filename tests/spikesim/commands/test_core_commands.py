@@ -206,3 +206,12 @@ def test_a_cold_kernel_cache_is_announced(tmp_path, capsys, monkeypatch):
     assert main([*args, "--out", str(tmp_path / "t.h5")]) == 0
     assert "spikesim simulate: note: compiling the simulation kernels" in \
         capsys.readouterr().err
+
+
+def test_dataset_quiet_draws_no_bar(tmp_path, capsys):
+    from tests.support.fault_helpers import write_manifest
+
+    manifest = write_manifest(tmp_path / "m.toml", count=1, size=(16, 16), window=20, samples=1)
+    assert main(["dataset", str(manifest), "--out", str(tmp_path / "ds"), "--quiet"]) == 0
+    cap = capsys.readouterr()
+    assert "%|" not in cap.err and "done 1" in cap.out
