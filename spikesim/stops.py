@@ -24,12 +24,13 @@ __all__ = ["deferred_stops"]
 def deferred_stops():
     """Hold Ctrl-C and SIGTERM while the block runs: a stop that arrives inside it
     is raised, by the handler that was there, when the block ends.  Outside the
-    main thread (where signals cannot be handled) the block just runs."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
+    main thread (where signals cannot be handled), or where a handler was set
+    outside Python, the block just runs."""
+    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    if threading.current_thread() is not threading.main_thread() or None in before.values():
+        yield  # (None: a handler set outside Python, which could not be put back)
         return
     held: list[int] = []
-    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     for s in before:
         signal.signal(s, lambda signum, frame: held.append(signum))
     try:
