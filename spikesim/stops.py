@@ -20,13 +20,20 @@ import threading
 __all__ = ["deferred_stops"]
 
 
+#: The stops held, and SIGCHLD: a handler of it (PyTorch's data loader has one, which
+#: raises when a worker dies) would otherwise break into the block the same way.
+_STOPS = (signal.SIGINT, signal.SIGTERM)
+_HELD = _STOPS + ((signal.SIGCHLD,) if hasattr(signal, "SIGCHLD") else ())
+
+
 @contextlib.contextmanager
 def deferred_stops():
-    """Hold Ctrl-C and SIGTERM while the block runs: a stop that arrives inside it
-    is raised, by the handler that was there, when the block ends.  Outside the
-    main thread (where signals cannot be handled), or where a handler was set
-    outside Python, the block just runs."""
-    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    """Hold Ctrl-C and SIGTERM (and SIGCHLD) while the block runs: a signal that
+    arrives inside it is raised, by the handler that was there, when the block
+    ends, a stop before a child's exit.  Outside the main thread (where signals
+    cannot be handled), or where a handler was set outside Python, the block just
+    runs."""
+    before = {s: signal.getsignal(s) for s in _HELD}
     if threading.current_thread() is not threading.main_thread() or None in before.values():
         yield  # (None: a handler set outside Python, which could not be put back)
         return
@@ -38,5 +45,6 @@ def deferred_stops():
     finally:
         for s, handler in before.items():
             signal.signal(s, handler)
+        stops = [s for s in held if s in _STOPS]
         if held:
-            signal.raise_signal(held[0])
+            signal.raise_signal(stops[0] if stops else held[0])

@@ -96,11 +96,8 @@ def train(cfg: TrainConfig | dict) -> dict:
     def minutes() -> float:  # the run's training time, over every call
         return start_minutes + (time.time() - t_start) / 60
 
-    def saved_step() -> int:  # the step last.pt holds (-1: none)
-        from spikejdd.models.checkpoints import load_checkpoint
-
-        path = out / "last.pt"
-        return int(load_checkpoint(path)["train"]["step"]) if path.exists() else -1
+    resumed_here = bool(path) and Path(path).resolve() == (out / "last.pt").resolve()
+    saved = [start_step if resumed_here else -1]  # the step out/last.pt holds (-1: none)
 
     bar = tqdm(total=cfg.steps, initial=tr.state.step, desc="train",
                disable=not (main and cfg.progress))
@@ -137,7 +134,9 @@ def train(cfg: TrainConfig | dict) -> dict:
                     tr.save("best.pt", res, resumable=False)
             if main and (st.step % cfg.checkpoint_every == 0 or last):
                 st.minutes = minutes()
-                tr.save("last.pt")
+                with deferred_stops():
+                    tr.save("last.pt")
+                saved[0] = st.step
             if last:
                 if main:
                     row = tr.bench(st.history[-1])
@@ -152,12 +151,20 @@ def train(cfg: TrainConfig | dict) -> dict:
         if main:  # a stop (Ctrl-C, SIGTERM): keep the steps done, say how to go on
             bar.leave = False
             bar.close()
-            if tr.state.step > saved_step():
-                tr.state.minutes = minutes()
-                tr.save("last.pt")
-            if (out / "last.pt").exists():
-                print(f"kept {out / 'last.pt'} (step {saved_step()}): --resume auto "
-                      "(resume='auto') continues from it", file=sys.stderr)
+            for _ in range(3):
+                try:
+                    if hasattr(batches, "close"):
+                        batches.close()  # the loader's workers go (they may be dying)
+                    if tr.state.step > max(saved[0], 0):
+                        tr.state.minutes = minutes()
+                        tr.save("last.pt")
+                        saved[0] = tr.state.step
+                    break
+                except RuntimeError:  # PyTorch reporting a loader worker the stop killed
+                    continue
+            if saved[0] >= 0:
+                print(f"kept {out / 'last.pt'} (step {saved[0]}): --resume auto continues "
+                      "from it", file=sys.stderr)
         raise
     if hasattr(batches, "close"):
         batches.close()

@@ -1,8 +1,8 @@
 """Pool workers that die with their parent.
 
 A spawned worker runs :func:`init_worker` first.  It installs the command
-line's signal handling (SIGTERM raises, so a file being written is removed
-on the way out; Ctrl-C is left to the parent, which stops its workers) and
+line's signal handling (SIGTERM exits by an exception, so a file being written
+is removed on the way out; Ctrl-C is left to the parent, which stops its workers) and
 starts a daemon thread that polls the parent's process id.  When the parent
 is gone (``kill -9``, a crash) the thread forbids every further rename into
 place (:func:`spikesim.io.atomic.set_rename_guard`), interrupts the task with
@@ -59,6 +59,12 @@ def _watch() -> None:
         os._exit(1)
 
 
+def _exit_on_sigterm(signum, frame):
+    """SIGTERM in a worker: unwind (files being written are removed on the way) and
+    exit quietly; an idle worker's exception would print a traceback."""
+    raise SystemExit(128 + signum)
+
+
 def init_worker(parent_pid: int) -> None:
     """Pool initializer: signal handling, parent watch and the rename guard."""
     global _parent_pid
@@ -67,6 +73,7 @@ def init_worker(parent_pid: int) -> None:
 
     _parent_pid = int(parent_pid)
     install_signal_handlers()
+    signal.signal(signal.SIGTERM, _exit_on_sigterm)
     # Ctrl-C reaches the whole process group; the parent stops its workers itself
     # (SIGTERM, after cancelling what is queued).  A worker that Ctrl-C stopped in the
     # middle of a result's send could leave the others waiting for the result queue
