@@ -122,8 +122,8 @@ def _cannot_guess(n_bytes: int, path: str | os.PathLike, partial: str) -> SpikeS
     """The error of a size that fits no known sensor (with what else to try)."""
     known = ", ".join(f"{w}x{h}" for h, w, _ in KNOWN_SENSOR_SIZES)
     hint = ("" if partial == "drop" else
-            "; or, for a truncated capture, partial='drop' (--partial drop) to drop the "
-            "partial frame at the end")
+            "; for a truncated capture, give them with partial='drop' (--partial drop) to drop "
+            "the partial frame at the end")
     return SpikeSimFormatError(
         f"cannot guess the frame size of {str(path) or 'the .dat file'} ({n_bytes} bytes): "
         f"it is not a whole number of frames of any known sensor size ({known}, W x H); "
