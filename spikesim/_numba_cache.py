@@ -71,7 +71,6 @@ def cache_is_cold(package_dir: Path | None = None) -> bool:
     return not any(folder.glob("*.nbi"))
 
 
-
 def sync_cache(package_dir: Path) -> bool:
     """Remove the numba cache files under ``package_dir`` when its sources
     changed since the last call; returns True when it removed them.  Never

@@ -97,7 +97,7 @@ def train(cfg: TrainConfig | dict) -> dict:
         return start_minutes + (time.time() - t_start) / 60
 
     resumed_here = bool(path) and Path(path).resolve() == (out / "last.pt").resolve()
-    saved = [start_step if resumed_here else -1]  # the step out/last.pt holds (-1: none)
+    saved_step = start_step if resumed_here else -1  # the step out/last.pt holds (-1: none)
 
     bar = tqdm(total=cfg.steps, initial=tr.state.step, desc="train",
                disable=not (main and cfg.progress))
@@ -136,7 +136,7 @@ def train(cfg: TrainConfig | dict) -> dict:
                 st.minutes = minutes()
                 with deferred_stops():
                     tr.save("last.pt")
-                saved[0] = st.step
+                saved_step = st.step
             if last:
                 if main:
                     row = tr.bench(st.history[-1])
@@ -155,15 +155,15 @@ def train(cfg: TrainConfig | dict) -> dict:
                 try:
                     if hasattr(batches, "close"):
                         batches.close()  # the loader's workers go (they may be dying)
-                    if tr.state.step > max(saved[0], 0):
+                    if tr.state.step > max(saved_step, 0):
                         tr.state.minutes = minutes()
                         tr.save("last.pt")
-                        saved[0] = tr.state.step
+                        saved_step = tr.state.step
                     break
                 except RuntimeError:  # PyTorch reporting a loader worker the stop killed
                     continue
-            if saved[0] >= 0:
-                print(f"kept {out / 'last.pt'} (step {saved[0]}): --resume auto continues "
+            if saved_step >= 0:
+                print(f"kept {out / 'last.pt'} (step {saved_step}): --resume auto continues "
                       "from it", file=sys.stderr)
         raise
     if hasattr(batches, "close"):

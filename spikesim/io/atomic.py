@@ -129,20 +129,19 @@ def is_stale_temp(path: str | os.PathLike) -> bool:
     return not _pid_alive(int(m.group(1))) and not _locked_by_other(path)
 
 
-def remove_stale_temps(folder: str | os.PathLike, name: str | None = None) -> int:
-    """Delete the stale temporaries in ``folder`` (only those of ``name`` when given).
+def remove_stale_temps(folder: str | os.PathLike) -> int:
+    """Delete the stale temporaries in ``folder``.
 
     Returns how many were removed.  Temporaries of live writers stay.
     """
     folder = Path(folder)
-    prefix = f".{name}{_TMP_MARK}" if name is not None else "."
     removed = 0
     try:
         entries = list(folder.iterdir())
     except OSError:
         return 0
     for p in entries:
-        if p.name.startswith(prefix) and is_stale_temp(p):
+        if is_stale_temp(p):
             with contextlib.suppress(OSError):
                 p.unlink()
                 removed += 1
