@@ -28,6 +28,7 @@ import argparse
 import contextlib
 import errno
 import os
+import re
 import signal
 import sys
 import warnings
@@ -41,6 +42,9 @@ __all__ = ["MAX_READOUTS", "as_option", "check_cli_numbers", "debug_requested",
            "Terminated"]
 
 EXIT_ERROR = 1
+_NO_MEMORY = "error: not enough memory for this request: ask for fewer readouts or a smaller size"
+#: A value that argparse would take for an option: ``-`` then a digit or a dot.
+_DASHED_VALUE = re.compile(r"-[0-9.]")
 EXIT_BUG = 70
 EXIT_INTERRUPTED = 130
 EXIT_PIPE = 141
@@ -53,6 +57,31 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        """Parse as argparse does, after joining an option and a value that starts
+        with ``-`` and a digit or a dot (``--size -4x8`` → ``--size=-4x8``):
+        argparse reads such a value as an unknown option and says only "expected
+        one argument", where the option's own check can name the bad value."""
+        args = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(self._join_dashed_values(args), namespace)
+
+    def _join_dashed_values(self, args: list[str]) -> list[str]:
+        joined, i = [], 0
+        while i < len(args):
+            token = args[i]
+            if token == "--":
+                return joined + args[i:]
+            action = self._option_string_actions.get(token)
+            if (action is not None and action.nargs is None and action.option_strings
+                    and i + 1 < len(args) and _DASHED_VALUE.match(args[i + 1])
+                    and args[i + 1] not in self._option_string_actions):
+                joined.append(f"{token}={args[i + 1]}")
+                i += 2
+                continue
+            joined.append(token)
+            i += 1
+        return joined
 
 
 class Terminated(BaseException):  # noqa: N818 - a signal, not an error
@@ -92,6 +121,12 @@ def _os_message(exc: OSError) -> str:
         errno.ECONNREFUSED: "connection refused: check the address and that the server runs",
     }.get(code)
     return where + (hint or exc.strerror or str(exc) or type(exc).__name__)
+
+
+def _is_out_of_memory(exc: Exception) -> bool:
+    """OpenCV's failed allocation (``cv2.error``, "Insufficient memory"), which is not
+    a :class:`MemoryError`."""
+    return type(exc).__module__.startswith("cv2") and "Insufficient memory" in str(exc)
 
 
 def _quiet_stdout() -> None:
@@ -139,8 +174,7 @@ def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False)
         _say(label, "stopped by SIGTERM; files being written were removed")
         return EXIT_TERMINATED
     except MemoryError:
-        _say(label, "error: not enough memory for this request: ask for fewer readouts or "
-                    "a smaller size")
+        _say(label, _NO_MEMORY)
         return EXIT_ERROR
     except OverflowError as exc:
         _say(label, f"error: a number is too large ({exc}): ask for fewer readouts or a "
@@ -150,6 +184,9 @@ def run_guarded(label: str, call: Callable[[], int | None], debug: bool = False)
         _say(label, f"error: {_os_message(exc)}")
         return EXIT_ERROR
     except Exception as exc:  # noqa: BLE001 - the boundary: a bug still gets one line
+        if _is_out_of_memory(exc):
+            _say(label, _NO_MEMORY)
+            return EXIT_ERROR
         _say(label, f"internal error: {type(exc).__name__}: {exc} (run again with --debug "
                     "for the traceback, and please report it)")
         return EXIT_BUG

@@ -78,8 +78,9 @@ def register(sub) -> None:
     p.add_argument("--clean-twin", action="store_true", help="also store the noise-free twin")
     p.add_argument("--out", required=True, help="FILE.h5 or FILE.dat")
     p.add_argument("--force", action="store_true",
-                   help="run even when the output looks larger than the free disk space or "
-                        "the scene needs an unusually large number of key frames")
+                   help="run even when the output looks larger than the free disk space, "
+                        "the run larger than the free memory, or the scene needs an "
+                        "unusually large number of key frames")
     p.set_defaults(func=run)
 
 
@@ -108,7 +109,7 @@ def run(args) -> int:
     from spikesim import io
     from spikesim._validate import check_int, check_real
     from spikesim.cli_guard import as_option, parse_size
-    from spikesim.workload import check_free_space, require_reasonable_key_frames
+    from spikesim.workload import check_free_space, check_memory, require_reasonable_key_frames
 
     check_int("--readouts", args.readouts, 1, 2**53, unit="readouts")
     check_int("--seed", args.seed, 0, 2**64 - 1)
@@ -122,6 +123,8 @@ def run(args) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".h5", ".hdf5", ".dat"):
         raise bad_value("--out", args.out, "a path ending in .h5, .hdf5 or .dat")
+    if not args.force:
+        check_memory(sensor.height, sensor.width, "--size" if args.size else "sensor size")
     scene_options = parse_overrides(args.scene_set, "--scene-set")
     if Path(args.scene).exists():
         if args.speed is not None or scene_options:

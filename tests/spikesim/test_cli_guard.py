@@ -7,6 +7,7 @@ from __future__ import annotations
 import gc
 import sys
 
+import numpy as np
 import pytest
 from tqdm import tqdm
 
@@ -91,3 +92,70 @@ def test_as_option_names_the_command_line_flag():
     assert str(err) == "--speed=50.0 is invalid: expected no --speed for scene 'flat'"
     other = SpikeSimFileError("no such file")
     assert as_option(other, {"speed": "--speed"}) is other
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["simulate", "flat", "--size", "-4x8", "--readouts", "2", "--out", "x.h5"],
+     "--size='-4x8' is invalid"),
+    (["simulate", "flat", "--size", "8x8", "--readouts", "-5", "--out", "x.h5"],
+     "--readouts=-5 is invalid"),
+])
+def test_a_value_starting_with_a_dash_is_checked_as_the_options_value(argv, named, capsys,
+                                                                        tmp_path, monkeypatch):
+    """argparse reads ``-4x8`` as an unknown option ("expected one argument"); the
+    parser joins it to its option so that the option's own check names it."""
+    from spikesim.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert named in err and "expected one argument" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_dash_value_is_not_joined_to_a_flag_or_after_the_option_list():
+    from spikesim.cli_guard import OneLineParser
+
+    p = OneLineParser(prog="t")
+    p.add_argument("--size")
+    p.add_argument("--quiet", action="store_true")
+    p.add_argument("rest", nargs="*")
+    assert p._join_dashed_values(["--size", "-4x8", "--quiet", "--", "--size", "-1"]) == [
+        "--size=-4x8", "--quiet", "--", "--size", "-1"]
+    assert p.parse_args(["--size", "-.5"]).size == "-.5"
+
+
+def test_a_size_beyond_the_free_memory_is_refused_before_any_work(capsys, tmp_path, monkeypatch):
+    """`spikesim simulate --size 30000x30000` names the memory it needs and what is
+    free, instead of swapping until the system kills it; `--force` goes on."""
+    from spikesim import workload
+    from spikesim.cli import main
+
+    monkeypatch.setattr(workload, "available_memory", lambda: 2**30)
+    out = tmp_path / "x.h5"
+    argv = ["simulate", "flat", "--readouts", "2", "--out", str(out)]
+    assert main(argv + ["--size", "2000x2000"]) == 1
+    err = capsys.readouterr().err
+    assert ("--size 2000x2000 needs about 1.49 GiB of memory but 1 GiB is free: ask for a "
+            "smaller --size, or pass --force") in err
+    assert not out.exists()
+    assert main(argv + ["--size", "16x16", "--force"]) == 0
+    assert out.exists()
+
+
+def test_the_free_memory_is_read_from_the_system():
+    from spikesim.workload import available_memory
+
+    free = available_memory()
+    assert free is None or 2**20 < free < 2**50
+
+
+def test_opencvs_failed_allocation_is_the_memory_error_line(capsys):
+    import cv2
+
+    def call():
+        cv2.resize(np.zeros((4, 4), np.float32), (1 << 20, 1 << 20))  # 4 TiB
+
+    assert run_guarded("spikesim test", call) == 1
+    assert capsys.readouterr().err == ("spikesim test: error: not enough memory for this "
+                                       "request: ask for fewer readouts or a smaller size\n")
