@@ -83,9 +83,11 @@ def guess_dat_shape(n_bytes: int, path: str | os.PathLike = "",
     """Pick the first of :data:`KNOWN_SENSOR_SIZES` whose frame size divides ``n_bytes``.
 
     With ``partial="drop"`` (a truncated capture), when no known size divides
-    ``n_bytes``, the first known size of which at least one whole frame fits
-    is taken instead; the trailing partial frame is then for the reader to
-    drop (with its warning).
+    ``n_bytes``, the one known size of which at least one whole frame fits is
+    taken instead, the trailing partial frame then for the reader to drop
+    (with its warning); where several fit, nothing tells them apart (a cut
+    1000×1000 capture is as many whole 400×250 frames and a part), so that is
+    an error naming them.
 
     Returns ``(height, width, message)``; the message says what was assumed and
     which other known sizes would also have fitted.  Raises
@@ -99,6 +101,13 @@ def guess_dat_shape(n_bytes: int, path: str | os.PathLike = "",
         fits = [(h, w, d) for h, w, d in KNOWN_SENSOR_SIZES if n_bytes >= dat_frame_bytes(h, w)]
     if not fits:
         raise _cannot_guess(n_bytes, path, partial)
+    if dropping and len(fits) > 1:
+        sizes = ", ".join(f"{w}x{h}" for h, w, _ in fits)
+        raise SpikeSimFormatError(
+            f"cannot guess the frame size of {str(path) or 'the .dat file'} ({n_bytes} bytes): "
+            f"no known sensor size is a whole number of frames, and a capture cut short could "
+            f"be any of {sizes} (W x H); pass height and width (--height and --width on the "
+            "command line)")
     h, w, desc = fits[0]
     n = n_bytes // dat_frame_bytes(h, w)
     msg = f"assumed {w}x{h} (W x H, {desc}): {n} readouts"

@@ -9,7 +9,12 @@ import warnings
 import numpy as np
 import pytest
 
-from spikesim.errors import SpikeSimFileError, SpikeSimTypeError, SpikeSimValueError
+from spikesim.errors import (
+    SpikeSimFileError,
+    SpikeSimFormatError,
+    SpikeSimTypeError,
+    SpikeSimValueError,
+)
 from spikesim.io import (
     DatFile,
     DatWriter,
@@ -181,7 +186,10 @@ def _truncated_vidar(tmp_path, frames=3, extra=7):
 
 
 def test_read_dat_guesses_the_size_of_a_truncated_capture_with_partial_drop(tmp_path):
-    path, spikes = _truncated_vidar(tmp_path)
+    """Guessed where one known size alone fits a whole frame; where several do, a cut
+    capture could be any of them, so the reader asks for the size instead of taking
+    the first (a cut 1000x1000 capture read as 400x250)."""
+    path, spikes = _truncated_vidar(tmp_path, frames=1)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         got = read_dat(path, partial="drop")
@@ -189,6 +197,15 @@ def test_read_dat_guesses_the_size_of_a_truncated_capture_with_partial_drop(tmp_
     text = " | ".join(str(w.message) for w in caught)
     assert "assumed 400x250" in text and "7 trailing bytes" in text
     assert "the partial frame is ignored" in text
+    path, spikes = _truncated_vidar(tmp_path, frames=3)
+    with pytest.raises(SpikeSimFormatError, match=r"could be any of 400x250, 416x250, 448x256 \(W x H\); "
+                                                  r"pass height and width \(--height and"):
+        read_dat(path, partial="drop")
+    with pytest.warns(UserWarning, match="the partial frame is ignored"):
+        np.testing.assert_array_equal(read_dat(path, 250, 400, partial="drop"), spikes)
+    cut_colour = np.zeros(125_000 * 2 + 99, np.uint8)  # two 1000x1000 frames and a part
+    with pytest.raises(SpikeSimFormatError, match="400x250, 416x250, 1000x1000"):
+        guess_dat_shape(cut_colour.size, partial="drop")
 
 
 def test_guessing_a_truncated_capture_without_drop_says_how(tmp_path):
