@@ -3,16 +3,23 @@
 from __future__ import annotations
 
 import json
+import sys
+from pathlib import Path
 
 from spikesim.errors import SpikeSimValueError
 
-__all__ = ["EXIT_UNCHECKED", "exit_status", "register", "run", "summary_line"]
+__all__ = ["EXIT_NOTHING", "EXIT_UNCHECKED", "exit_status", "nothing_to_verify", "register",
+           "run", "summary_line"]
 
 
 #: Exit status when nothing is damaged but some file could not be checked (a .dat of
-#: unknown frame size).  0: every file checked and ok; 1: something is damaged; 2 is
-#: argparse's usage error.
+#: unknown frame size).  0: every file checked and ok; 1: something is damaged.
 EXIT_UNCHECKED = 3
+#: Exit status when PATH holds nothing to verify (no such path, or a folder without a
+#: .h5, .hdf5 or .dat file): a usage error, as argparse's, never read as "damaged".
+EXIT_NOTHING = 2
+#: The file name endings verify checks (``spikesim.io.verify``).
+SUFFIXES = (".h5", ".hdf5", ".dat")
 
 
 def register(subparsers) -> None:
@@ -21,8 +28,9 @@ def register(subparsers) -> None:
         description="Open each .h5 file (or every file under a folder), read all its chunks "
                     "against their checksums and its ground truth for NaN/inf; check .dat "
                     "lengths. Exit status 0 when every file was checked and is ok, 1 when "
-                    "anything is damaged, 3 when nothing is damaged but some .dat file could "
-                    "not be checked (its frame size is unknown: give --height and --width).",
+                    "anything is damaged, 2 when PATH does not exist or holds no such file, 3 "
+                    "when nothing is damaged but some .dat file could not be checked (its "
+                    "frame size is unknown: give --height and --width).",
     )
     p.add_argument("path", help="a .h5 or .dat file, or a folder")
     p.add_argument("--height", type=int, help="frame height of .dat files (else guessed)")
@@ -56,6 +64,18 @@ def summary_line(counts: dict) -> str:
     return line
 
 
+def nothing_to_verify(path: Path) -> str | None:
+    """Why ``path`` holds nothing to verify (it does not exist, or is a folder with no
+    ``.h5``, ``.hdf5`` or ``.dat`` file at any depth); None when it holds something."""
+    if not path.exists():
+        return f"no such file or folder: {str(path)!r}: check the path"
+    if path.is_dir() and not any(p.suffix.lower() in SUFFIXES and p.is_file()
+                                 for p in path.rglob("*")):
+        return (f"no .h5, .hdf5 or .dat file found in the folder {str(path)!r} (nor in its "
+                "subfolders): give a spike file or a folder holding some")
+    return None
+
+
 def exit_status(counts: dict) -> int:
     """1 if anything is damaged, else 3 if some file was not checked, else 0."""
     if counts["damaged"]:
@@ -73,6 +93,10 @@ def run(args) -> int:
     if (args.height is None) != (args.width is None):
         raise SpikeSimValueError("give both --height and --width (the .dat frame size), or "
                                  "neither to have it guessed")
+    why = nothing_to_verify(Path(args.path))
+    if why:
+        print(f"spikesim verify: error: {why}", file=sys.stderr)
+        return EXIT_NOTHING
     reports = verify(args.path, args.height, args.width)
     counts = summarize(reports)
     if args.json:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from spikesim.cli import main
-from spikesim.commands.verify import EXIT_UNCHECKED
+from spikesim.commands.verify import EXIT_NOTHING, EXIT_UNCHECKED
 from spikesim.io import verify, write_dat, write_h5
 
 
@@ -101,3 +101,20 @@ def test_a_damaged_file_of_no_dataset_gets_no_dataset_advice(tmp_path, make_stre
     out = capsys.readouterr().out
     assert "DAMAGED" in out and "spikesim dataset" not in out
     assert "advice" not in verify(tmp_path / "b.h5")[0]
+
+
+@pytest.mark.parametrize("flags", [[], ["--json"]])
+def test_nothing_to_verify_is_a_usage_error_not_damage(tmp_path, capsys, flags):
+    """A folder with no spike file (at any depth) or a path that does not exist: one line
+    on stderr saying so and exit 2, never 1 ("damaged")."""
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "notes" / "sub").mkdir(parents=True)
+    (tmp_path / "notes" / "sub" / "readme.txt").write_text("no spikes here")
+    for path, words in ((tmp_path / "empty", "no .h5, .hdf5 or .dat file found in the folder"),
+                        (tmp_path / "notes", "no .h5, .hdf5 or .dat file found in the folder"),
+                        (tmp_path / "missing", "no such file or folder")):
+        assert main(["verify", str(path), *flags]) == EXIT_NOTHING == 2
+        cap = capsys.readouterr()
+        assert cap.out == "" and len(cap.err.strip().splitlines()) == 1, cap
+        assert cap.err.startswith("spikesim verify: error: ") and words in cap.err
+        assert str(path) in cap.err
