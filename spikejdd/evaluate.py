@@ -18,8 +18,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import secrets
 import sys
 import time
 import warnings
@@ -32,7 +34,9 @@ from tqdm import tqdm
 from spikejdd.metrics import score
 from spikejdd.registry import call_method, get_method
 from spikejdd.runtime import describe_machine, machine_info
-from spikesim.errors import SpikeSimError, SpikeSimValueError, bad_value
+from spikesim.errors import SpikeSimError, SpikeSimFileError, SpikeSimValueError, bad_value
+from spikesim.io.atomic import atomic_path
+from spikesim.io.labels import sequence_labels  # shared with `spikesim info`
 from spikesim.srgb import linear_to_srgb8
 
 __all__ = ["Frame", "frames_from_dataset", "frames_from_simulation", "run", "sweep",
@@ -57,6 +61,12 @@ class Frame:
     rate: float
     gt: np.ndarray  # (H, W, 3) float32
     group: dict = field(default_factory=dict)
+    origin: str = ""  # where it came from: file, window and readout (for error messages)
+
+    @property
+    def place(self) -> str:
+        """Where the frame came from, for messages: its ``origin``, else sequence and readout."""
+        return self.origin or f"sequence {self.sequence!r} readout {self.readout}"
 
 
 #: Smallest frame side the headline scores take (SSIM-gauss11's 11×11 window).
@@ -73,35 +83,6 @@ def _check_context(context: int) -> int:
     if isinstance(context, bool) or not isinstance(context, int) or context < 1:
         raise bad_value("context", context, "an integer >= 1 readouts")
     return context
-
-
-def sequence_labels(meta: dict) -> dict:
-    """``{"noise": ..., "motion": ...}`` of a sequence, read from its metadata.
-
-    Noise: the dataset builder's label when there is one, else ``none``,
-    ``GN<σ_g>``, ``GPN`` or ``physical`` from the sensor's noise model.
-    Motion: the scene's motion (``pan``, ``zoom``, ...), ``object`` for
-    procedural scenes with built-in object motion, ``static``, or ``video``.
-    """
-    dataset = meta.get("dataset") or {}
-    noise = (meta.get("sensor") or {}).get("noise") or None
-    label = dataset.get("noise_label")
-    if not label:
-        if not noise:
-            label = "none"
-        elif noise.get("type") == "paper":
-            sg, sp = float(noise.get("sigma_g", 0.0)), float(noise.get("sigma_p", 0.0))
-            label = "GPN" if sp > 0 else f"GN{sg:g}"
-        else:
-            label = str(noise.get("type", "other"))
-    scene = meta.get("scene") or {}
-    spec = dataset.get("scene_spec") or {}
-    motion = scene.get("motion") or spec.get("motion")
-    if not motion:
-        kind = scene.get("type") or spec.get("kind")
-        motion = {"procedural": "object", "static": "static", "video": "video"}.get(kind,
-                                                                                  "unknown")
-    return {"noise": str(label), "motion": str(motion)}
 
 
 def _fit(g: int, n: int) -> int:
@@ -149,8 +130,9 @@ def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1)
         group = sequence_labels(seq.meta)
         for j in pick.astype(int):
             k, g = ok[j]
+            origin = f"{seq.path} window {k + 1} of {len(seq.gt_index)} (readout {g})"
             frames.append(Frame(name, g, seq.read_window(g - half, length), half, seq.cfa,
-                                rate, seq.read_gt(k), dict(group)))
+                                rate, seq.read_gt(k), dict(group), origin))
         if hasattr(seq, "close"):
             seq.close()
     if not any_gt:
@@ -179,8 +161,10 @@ def frames_from_simulation(scene, sensor, name: str, gt_readouts, context: int =
     stream = ss.simulate(scene, sensor, n_readouts=n, seed=seed, gt_readouts=gt_readouts)
     spikes = stream.unpack()
     gts = dict(zip(np.asarray(stream.gt_index).tolist(), stream.gt, strict=True))
+    noise = f", noise {group['noise']}" if group and "noise" in group else ""
     return [Frame(name, g, spikes[g - half:g - half + context], half, stream.cfa,
-                  float(sensor.full_scale_rate), gts[g], dict(group or {})) for g in gt_readouts]
+                  float(sensor.full_scale_rate), gts[g], dict(group or {}),
+                  f"simulated sequence {name!r}{noise} (readout {g})") for g in gt_readouts]
 
 
 def _time_call(fn, repeats: int):
@@ -264,13 +248,11 @@ def _method_rows(m: str, fn, frames: list[Frame], repeats: int, opts: dict,
                  outputs: dict | None, bar) -> list[dict]:
     """One method's rows of :func:`run`: an untimed warm-up call, then every frame."""
     bar.set_postfix_str(f"{m} (warm-up)")
-    f0 = frames[0]
-    call_method(fn, f0.spikes, f0.cfa, f0.center, rate=f0.rate, **opts)  # not timed
+    _call_on(fn, frames[0], opts)  # not timed
     bar.set_postfix_str(m)
     rows = []
     for i, f in enumerate(frames):
-        out, sec = _time_call(lambda f=f, fn=fn: call_method(
-            fn, f.spikes, f.cfa, f.center, rate=f.rate, **opts), repeats)
+        out, sec = _time_call(lambda f=f, fn=fn: _call_on(fn, f, opts), repeats)
         if outputs is not None:
             outputs[(m, i)] = out
         rows.append({"method": m, "sequence": f.sequence, "readout": f.readout,
@@ -279,6 +261,20 @@ def _method_rows(m: str, fn, frames: list[Frame], repeats: int, opts: dict,
                      "seconds": sec, **score(out, f.gt)})
         bar.update()
     return rows
+
+
+def _call_on(fn, f: Frame, opts: dict) -> np.ndarray:
+    """``fn`` on frame ``f`` (:func:`spikejdd.registry.call_method`); its failure says where:
+    ``method 'mine' failed on seq_003.h5 window 2 of 3 (readout 60): ValueError: ...``."""
+    try:
+        return call_method(fn, f.spikes, f.cfa, f.center, rate=f.rate, **opts)
+    except SpikeSimError as exc:  # the same error, its message naming the frame
+        head = f"method {getattr(fn, 'name', fn)!r}"
+        msg = str(exc)
+        rest = msg[len(head):].lstrip(":").strip() if msg.startswith(head) else msg
+        rest = rest.removeprefix("failed:").strip()
+        exc.args = (f"{head} failed on {f.place}: {rest}",)
+        raise
 
 
 def summarize(rows: list[dict], methods: list[str], by: tuple[str, ...] = ()) -> dict:
@@ -473,25 +469,46 @@ def _pick_panels(frames: list[Frame], limit: int) -> list[int]:
     return (first + rest)[:limit]
 
 
-def _write_panels(frames, outputs, methods, result, folder: Path, limit: int) -> list[str]:
+def _write_panels(frames, outputs, methods, result, folder: Path, limit: int,
+                  temp) -> tuple[list[str], set[str]]:
+    """Write the image panels, each to ``temp(final path)``; returns their Markdown and
+    their file names."""
     import cv2
 
     folder.mkdir(parents=True, exist_ok=True)
     psnr = {(r["method"], r["sequence"], r["readout"]): r["PSNR[linear]"]
             for r in result["rows"]}
-    md = []
+    md, names = [], set()
     for i in _pick_panels(frames, limit):
         f = frames[i]
         labels = ["ground truth"] + list(methods)
         img = panel_image([f.gt] + [outputs[(m, i)] for m in methods], labels)
         name = f"{i:03d}_{f.sequence}_{f.readout}.png".replace("/", "_")
-        if not cv2.imwrite(str(folder / name), img[..., ::-1]):
-            raise OSError(f"could not write {folder / name}")
+        ok, png = cv2.imencode(".png", img[..., ::-1])
+        if not ok:
+            raise SpikeSimFileError(f"could not encode {str(folder / name)!r} as PNG")
+        temp(folder / name).write_bytes(png.tobytes())
+        names.add(name)
         group = ", ".join(f"{k} {f.group[k]}" for k in ("noise", "motion") if k in f.group)
         scores = "; ".join(f"{m} {psnr[(m, f.sequence, f.readout)]:.2f} dB" for m in methods)
         md += [f"**{f.sequence}**, readout {f.readout}" + (f" ({group})" if group else "") +
                f": {scores}", "", f"![{f.sequence} {f.readout}]({folder.name}/{name})", ""]
-    return md
+    return md, names
+
+
+def _new_run_id() -> str:
+    """An id of one report: its UTC time and 8 random hex digits."""
+    return time.strftime("%Y%m%dT%H%M%SZ", time.gmtime()) + "-" + secrets.token_hex(4)
+
+
+def _remove_earlier(json_path: Path, folder: Path, keep: set[str]) -> None:
+    """Remove what an earlier report leaves that this one does not replace: its ``.json``
+    (so that a set cut short while renaming has none) and the panels not in ``keep``."""
+    json_path.unlink(missing_ok=True)
+    if folder.is_dir():
+        for old in folder.glob("*.png"):
+            if old.name not in keep:
+                old.unlink(missing_ok=True)
 
 
 def write_report(result: dict, methods: list[str], stem, command: str = "",
@@ -507,6 +524,12 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
     with their errors and left out of the tables.  A ``stem`` that is a
     folder (it exists, or ends with ``/``) holds them as ``evaluation.*``.
     Returns the paths written.
+
+    The files form one set: each is written to a temporary, then an earlier
+    report's ``stem.json`` and panels are removed, the others are renamed into
+    place, and ``stem.json`` last.  A ``stem.json`` therefore always sits
+    beside files of its own run (its ``run_id`` is in the Markdown and in the
+    PNG's ``Description``), and a report killed while renaming has none.
     """
     is_folder = Path(stem).is_dir() or str(stem).endswith(("/", os.sep))
     stem = Path(stem) / "evaluation" if is_folder else Path(stem)
@@ -516,14 +539,34 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
     if not torch_used:
         machine.pop("torch_threads", None)  # torch's default would be read as what ran
     machine["description"] = describe_machine(machine)
-    result = dict(result, methods=methods, machine=machine, command=command,
+    run_id = _new_run_id()
+    result = dict(result, run_id=run_id, methods=methods, machine=machine, command=command,
                   conventions=CONVENTIONS)
+    paths = [stem.with_suffix(".json"), stem.with_suffix(".md"), stem.with_suffix(".png")]
+    with contextlib.ExitStack() as stack:
+        def temp(final: Path) -> Path:  # renamed over ``final`` at the end, the first last
+            return stack.enter_context(atomic_path(final))
+
+        temp(paths[0]).write_text(json.dumps(result, indent=1, default=float))
+        md_tmp, png_tmp = temp(paths[1]), temp(paths[2])
+        folder = stem.parent / f"{stem.name}_panels"
+        md, names = _report_md(result, methods, stem, frames, outputs, panels, folder, temp)
+        md_tmp.write_text("\n".join(md) + "\n")
+        _scatter(result, succeeded(result, methods), png_tmp, run_id)
+        _remove_earlier(paths[0], folder, names)
+    return paths
+
+
+def _report_md(result: dict, methods: list[str], stem: Path, frames, outputs, panels: int,
+               folder: Path, temp) -> tuple[list[str], set[str]]:
+    """The lines of :func:`write_report`'s Markdown, and the panels it wrote (``temp``)."""
+    machine, command, run_id = result["machine"], result["command"], result["run_id"]
     failed = result.get("failed") or {}
     methods = succeeded(result, methods)  # a failed method has no rows
-    paths = [stem.with_suffix(".json"), stem.with_suffix(".md"), stem.with_suffix(".png")]
-    paths[0].write_text(json.dumps(result, indent=1, default=float))
     rt = result.get("runtime") or {}
-    md = [f"# {stem.name}", ""]
+    md = [f"# {stem.name}", "",
+          f"Run id `{run_id}`, the `run_id` of {stem.with_suffix('.json').name} too (a report "
+          "without that file was cut short).", ""]
     if command:
         md += [f"Command: `{command}`", ""]
     md += [f"Machine: {machine['description']}.", "",
@@ -549,21 +592,22 @@ def write_report(result: dict, methods: list[str], stem, command: str = "",
     for m in methods:
         cells = [f"{np.mean([r['PSNR[linear]'] for r in result['rows'] if r['method'] == m and r['sequence'] == s]):.2f}" for s in seqs]  # noqa: E501
         md.append(f"| {m} | " + " | ".join(cells) + " |")
-    md += ["", "## Speed against error", "", f"![speed against error]({paths[2].name})", ""]
+    png = stem.with_suffix(".png").name
+    md += ["", "## Speed against error", "", f"![speed against error]({png})", ""]
+    names: set[str] = set()
     if frames is not None and outputs is not None and panels > 0:
         md += ["## Image panels", "",
                "Left to right: ground truth, " + ", ".join(methods) + f"; the same centred "
                f"crop (at most {PANEL_CROP}×{PANEL_CROP} px) of each, sRGB-encoded.", ""]
-        md += _write_panels(frames, outputs, methods, result,
-                            stem.parent / f"{stem.name}_panels", panels)
-    paths[1].write_text("\n".join(md) + "\n")
-    _scatter(result, methods, paths[2])
-    return paths
+        lines, names = _write_panels(frames, outputs, methods, result, folder, panels, temp)
+        md += lines
+    return md, names
 
 
-def _scatter(result: dict, methods: list[str], path: Path) -> None:
+def _scatter(result: dict, methods: list[str], path: Path, run_id: str = "") -> None:
     """Speed against error, one colour per method: the mean (marker) and the range over
-    frames of both time and PSNR (bars); small markers per noise label."""
+    frames of both time and PSNR (bars); small markers per noise label.  Written as PNG
+    whatever ``path``'s name, ``run_id`` in its ``Description``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -593,5 +637,6 @@ def _scatter(result: dict, methods: list[str], path: Path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="best")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, format="png",
+                metadata={"Description": f"spikejdd evaluate report, run id {run_id}"})
     plt.close(fig)

@@ -14,8 +14,9 @@ __all__ = ["register", "describe", "run"]
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "info", help="describe a spike file (.h5 file, dataset folder or root, or .dat)",
-        description="Shape, readouts, duration, CFA, configuration, firing-rate statistics and "
-                    "ground-truth readouts of a spikesim HDF5 file, a dataset folder or a .dat.",
+        description="Shape, readouts, duration, CFA, configuration, firing-rate statistics, "
+                    "ground-truth readouts and the noise and motion labels (those spikejdd "
+                    "evaluate groups by) of a spikesim HDF5 file, a dataset folder or a .dat.",
     )
     p.add_argument("path", help="a .h5 file, a dataset folder or root, or a .dat capture")
     p.add_argument("--all", action="store_true", help="describe every sequence of a folder")
@@ -27,8 +28,10 @@ def register(subparsers) -> None:
 
 
 def describe(src, stats_readouts: int = 4096) -> dict:
-    """JSON-able description of one Sequence or DatFile."""
+    """JSON-able description of one Sequence or DatFile; an HDF5 sequence's has its
+    ``labels`` (noise and motion, :func:`spikesim.io.labels.sequence_labels`)."""
     from spikesim.io.dat import DatFile
+    from spikesim.io.labels import sequence_labels
     from spikesim.io.source import firing_rate_stats
 
     meta = src.meta
@@ -49,7 +52,8 @@ def describe(src, stats_readouts: int = 4096) -> dict:
         info.update(seed=meta.get("seed"), sensor=meta.get("sensor"), scene=meta.get("scene"),
                     format_version=src.format_version,
                     spikesim_version=meta.get("spikesim_version"),
-                    clip=(meta.get("dataset") or {}).get("clip"))
+                    clip=(meta.get("dataset") or {}).get("clip"),
+                    labels=sequence_labels(meta))  # what `spikejdd evaluate` groups by
     return info
 
 
@@ -88,6 +92,9 @@ def _text(info: dict) -> str:
     else:
         lines.append(f"  clean twin {'yes' if info['clean_twin'] else 'no'}; seed {info['seed']}; "
                      f"format version {info['format_version']}")
+        labels = info["labels"]
+        lines.append(f"  labels     noise {labels['noise']}, motion {labels['motion']} "
+                     "(the groups of spikejdd evaluate)")
         if info.get("clip"):
             lines.append(f"  clip       {clip_line(info['clip'])}")
         for key in ("sensor", "scene"):

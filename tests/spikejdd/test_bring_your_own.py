@@ -294,6 +294,18 @@ def needs_gain(spikes, cfa, center, gain):
 
 def nan_out(spikes, cfa, center):
     return np.full(spikes.shape[1:] + (3,), np.nan)
+
+CALLS = []
+
+def third_call_fails(spikes, cfa, center):
+    CALLS.append(1)
+    if len(CALLS) == 3:
+        raise ValueError("bad frame")
+    return np.full(spikes.shape[1:] + (3,), 0.5)
+
+def third_call_wrong_shape(spikes, cfa, center):
+    CALLS.append(1)
+    return np.zeros((2, 2, 3) if len(CALLS) == 3 else spikes.shape[1:] + (3,))
 '''
 
 
@@ -412,3 +424,28 @@ def test_reconstruct_centers_mix_readouts_and_ranges(data39, tmp_path, capsys):
     text = capsys.readouterr().out
     assert text.count("tfp+bilinear: 39 readouts used") == 1
     assert "wrote 9 sRGB PNG(s)" in text  # 3 sequences × readouts 15, 19, 23
+
+
+def test_a_method_failing_on_one_frame_names_its_file_and_window(data39, tmp_path, capsys,
+                                                                 monkeypatch):
+    """The failure line names the file, the window (GT frame) and readout it failed on."""
+    from spikejdd import evaluate
+
+    (tmp_path / "failing_meth.py").write_text(FAILING_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    args = ["evaluate", "--data", str(data39), "--out", str(tmp_path / "r"), "--quiet",
+            "--repeats", "1"]
+    # calls: warm-up (astronaut), astronaut, coffee: the third is on coffee.h5
+    for fn, what in (("third_call_fails", "ValueError: bad frame"),
+                     ("third_call_wrong_shape", "returned shape (2, 2, 3)")):
+        sys.modules.pop("failing_meth", None)
+        assert main(args + ["--methods", f"tfp+bilinear,failing_meth:{fn}"]) == 1
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1, err
+        assert (f"error: method 'failing_meth:{fn}' failed on {data39 / 'coffee.h5'} window 1 "
+                f"of 1 (readout 19): {what}") in err, err
+    sys.modules.pop("failing_meth", None)
+    frames = evaluate.frames_from_dataset(data39)
+    with pytest.raises(MethodError, match=r"failed on .*coffee\.h5 window 1 of 1 \(readout 19\)"):
+        evaluate.run(frames, ["failing_meth:third_call_fails"], repeats=1, progress=False)
+    sys.modules.pop("failing_meth", None)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -170,3 +171,71 @@ def test_an_out_folder_holds_the_report(tmp_path, capsys):
         assert sorted(p.name for p in folder.glob("evaluation.*")) == [
             "evaluation.json", "evaluation.md", "evaluation.png"]
     assert not (tmp_path / "there.json").exists()
+
+
+class _Killed(BaseException):
+    """Stands for SIGKILL in the middle of writing a report (nothing after it runs)."""
+
+
+def _report_state(stem):
+    """(run id of stem.json or None, stem.md text, run id note of stem.png, panel names)."""
+    from PIL import Image
+
+    js = stem.with_suffix(".json")
+    run_id = json.loads(js.read_text())["run_id"] if js.exists() else None
+    with Image.open(stem.with_suffix(".png")) as png:
+        note = png.info.get("Description", "")
+    panels = sorted(p.name for p in (stem.parent / f"{stem.name}_panels").iterdir())
+    return run_id, stem.with_suffix(".md").read_text(), note, panels
+
+
+def test_a_report_cut_short_never_pairs_new_and_old_files(data_dir, tmp_path, monkeypatch):
+    """write_report's files are one set: a crash while writing them leaves the earlier
+    report whole; a kill while renaming them into place leaves no .json (the mark of a
+    whole set); a .json always has the run id of the .md and .png beside it."""
+    frames = evaluate.frames_from_dataset(data_dir, context=41)
+    outputs: dict = {}
+    res = evaluate.run(frames, ["tfp+bilinear"], repeats=1, progress=False, outputs=outputs)
+    stem = tmp_path / "rep"
+
+    def write(panels=6):
+        return evaluate.write_report(res, ["tfp+bilinear"], stem, frames=frames,
+                                     outputs=outputs, panels=panels)
+
+    write()
+    first, md, note, panels = _report_state(stem)
+    assert first in md and first in note and len(panels) == 2
+    # a crash while the PNG is drawn (the .json and .md written before it): nothing changes
+    real_scatter = evaluate._scatter
+
+    def scatter_then_crash(*args, **kwargs):
+        real_scatter(*args, **kwargs)
+        raise _Killed
+
+    monkeypatch.setattr(evaluate, "_scatter", scatter_then_crash)
+    with pytest.raises(_Killed):
+        write()
+    monkeypatch.undo()
+    assert _report_state(stem) == (first, md, note, panels)
+    # killed after k of the 5 renames (2 panels, PNG, Markdown, JSON last): no .json
+    real_replace = os.replace
+    for k in range(5):
+        done = []
+
+        def replace_then_kill(src, dst, k=k, done=done):
+            if len(done) == k:
+                raise _Killed
+            done.append(dst)
+            real_replace(src, dst)
+
+        monkeypatch.setattr(os, "replace", replace_then_kill)
+        with pytest.raises(_Killed):
+            write()
+        monkeypatch.undo()
+        assert _report_state(stem)[0] is None, k
+        assert not [p for p in tmp_path.rglob(".*") if ".tmp-" in p.name]
+    # a whole run again: one run id throughout, and the earlier panels gone
+    write(panels=1)
+    run_id, md, note, panels = _report_state(stem)
+    assert run_id not in (None, first) and run_id in md and run_id in note
+    assert len(panels) == 1 and f"rep_panels/{panels[0]}" in md
