@@ -5,6 +5,7 @@ file of a dataset folder gets advice on remaking it."""
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
@@ -118,3 +119,15 @@ def test_nothing_to_verify_is_a_usage_error_not_damage(tmp_path, capsys, flags):
         assert cap.out == "" and len(cap.err.strip().splitlines()) == 1, cap
         assert cap.err.startswith("spikesim verify: error: ") and words in cap.err
         assert str(path) in cap.err
+
+
+def test_a_folder_holding_only_a_killed_writers_temporary_is_listed_not_empty(tmp_path, capsys):
+    import subprocess
+
+    (tmp_path / "ds").mkdir()
+    subprocess.run([sys.executable, "-c", "import sys; from pathlib import Path; "
+                    "from spikesim.io.atomic import temp_name_for; "
+                    "temp_name_for(Path(sys.argv[1])).write_bytes(b'half written')",
+                    str(tmp_path / "ds" / "seq.h5")], check=True)  # a writer now gone
+    assert main(["verify", str(tmp_path / "ds")]) == 0
+    assert "stale temporary" in capsys.readouterr().out
