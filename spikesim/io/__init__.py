@@ -34,6 +34,7 @@ from spikesim.io.index import (
     open_dataset,
     resolve_dataset,
 )
+from spikesim.io.labels import sequence_labels
 from spikesim.io.source import open_source
 from spikesim.io.verify import verify, verify_file
 
@@ -65,6 +66,7 @@ __all__ = [
     "verify",
     "verify_file",
     "resolve_dataset",
+    "sequence_labels",
     "write_dat",
     "write_h5",
 ]
