@@ -31,7 +31,14 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from spikesim.dataset import build_dataset, builtin_manifests, estimate_dataset, load_manifest
+    from spikesim.cli_guard import as_option
+    from spikesim.dataset import (
+        BuildFailedError,
+        build_dataset,
+        builtin_manifests,
+        estimate_dataset,
+        load_manifest,
+    )
     from spikesim.errors import SpikeSimValueError
 
     if args.list:
@@ -52,9 +59,17 @@ def run(args) -> int:
                         names=("--workers", "--scheduler", "--dask-local"))
     manifest = load_manifest(args.manifest, variables)
     if args.dry_run:
-        est = estimate_dataset(manifest, workers=args.workers, limit=args.limit,
-                               dask_local=args.dask_local, out_dir=args.out)
+        try:
+            est = estimate_dataset(manifest, workers=args.workers, limit=args.limit,
+                                   dask_local=args.dask_local, out_dir=args.out)
+        except SpikeSimValueError as exc:
+            raise as_option(exc, {"out_dir": "--out"}) from None
         print(json.dumps(est, indent=2))  # stdout holds only the JSON: the summary is for people
+        if not est["to_make"]:
+            print(f"plan: {est['sequences']} sequence{'' if est['sequences'] == 1 else 's'} "
+                  f"({est['by_split']}), all already made in {args.out}: nothing to build",
+                  file=sys.stderr)
+            return 0
         print(f"plan: {est['sequences']} sequence{'' if est['sequences'] == 1 else 's'} "
               f"({est['by_split']}), {est['to_make']} to "
               f"make, {est['px_readouts']:.3g} pixel-readouts, about "
@@ -79,9 +94,14 @@ def run(args) -> int:
     from spikesim.workload import announce_cold_cache
 
     announce_cold_cache("spikesim dataset")
-    summary = build_dataset(manifest, args.out, workers=args.workers, scheduler=args.scheduler,
-                            dask_local=args.dask_local, limit=args.limit, prune=args.prune,
-                            progress=not args.quiet)
+    try:
+        summary = build_dataset(manifest, args.out, workers=args.workers,
+                                scheduler=args.scheduler, dask_local=args.dask_local,
+                                limit=args.limit, prune=args.prune, progress=not args.quiet)
+    except BuildFailedError as exc:  # every sequence failed: listed below, exit status 1
+        summary = exc.summary
+    except SpikeSimValueError as exc:
+        raise as_option(exc, {"out_dir": "--out"}) from None
     print(summary.line())
     for rec in summary.failures:
         print(f"  failed {rec['file']}: {rec['error']}")

@@ -3,10 +3,10 @@
 See ``docs/dataset.md``.  Typical use::
 
     from spikesim.dataset import load_manifest, build_dataset
-    summary = build_dataset(load_manifest("builtin:sjdd-train-small"), "data/train", workers=2)
+    summary = build_dataset(load_manifest("builtin:sjdd-train-small"), "data", workers=2)
 """
 
-from spikesim.dataset.build import BuildSummary, build_dataset, estimate_dataset
+from spikesim.dataset.build import BuildFailedError, BuildSummary, build_dataset, estimate_dataset
 from spikesim.dataset.manifest import (
     BUILTIN_PREFIX,
     Manifest,
@@ -19,6 +19,7 @@ from spikesim.dataset.plan import SequenceTask, derive_seed, plan_tasks
 
 __all__ = [
     "BUILTIN_PREFIX",
+    "BuildFailedError",
     "BuildSummary",
     "Manifest",
     "SequenceTask",

@@ -65,8 +65,9 @@ def _exit_on_sigterm(signum, frame):
     raise SystemExit(128 + signum)
 
 
-def init_worker(parent_pid: int) -> None:
-    """Pool initializer: signal handling, parent watch and the rename guard."""
+def init_worker(parent_pid: int, started=None) -> None:
+    """Pool initializer: signal handling, parent watch and the rename guard; then sets
+    the event ``started`` (when given), which tells the parent a worker got this far."""
     global _parent_pid
     from spikesim.cli_guard import install_signal_handlers
     from spikesim.io.atomic import set_rename_guard
@@ -83,3 +84,5 @@ def init_worker(parent_pid: int) -> None:
     if os.getppid() != _parent_pid:  # died while this worker started
         os._exit(1)
     threading.Thread(target=_watch, name="spikesim-parent-watch", daemon=True).start()
+    if started is not None:
+        started.set()

@@ -15,6 +15,14 @@
   it is gone (``_watch.py``).  SIGTERM or Ctrl-C stops the workers, removes
   their temporary files and still writes ``build_summary.json`` and the
   split indexes, counting every file finished before the stop.
+* Workers that die while starting (a script calling :func:`build_dataset` at its
+  top level, outside ``if __name__ == "__main__":``, which every spawned worker
+  imports again) stop the build with an error saying so; a Dask cluster left
+  without any worker for :data:`DASK_NO_WORKER_S` seconds stops it too.
+* A build in which every sequence it ran failed raises :class:`BuildFailedError`
+  (after writing its summary and indexes), so a script cannot miss it.
+* The output folder must not lie inside another dataset (one of its split
+  folders, say): a build there would nest a dataset in it.
 * Stale temporary files of killed writers are removed; those of another live
   run into the same folder are left alone (``spikesim.io.atomic``).
 * Each split folder gets an ``index.json`` (``spikesim.io.build_index``), and
@@ -45,13 +53,21 @@ from spikesim.dataset.manifest import Manifest
 from spikesim.dataset.plan import plan_tasks
 from spikesim.dataset.record import STAGES, TaskRecord
 from spikesim.dataset.worker import run_batch, run_task, validate_existing
-from spikesim.errors import SpikeSimFileError, bad_value
+from spikesim.errors import SpikeSimError, SpikeSimFileError, bad_value
 from spikesim.scenes import frame_cache
 
-__all__ = ["BuildSummary", "build_dataset", "check_executors", "estimate_dataset"]
+__all__ = ["BuildFailedError", "BuildSummary", "build_dataset", "check_executors",
+           "estimate_dataset"]
 
 #: Seconds to wait for a Dask scheduler to answer.
 SCHEDULER_TIMEOUT_S = 10
+#: Seconds a Dask build waits while the scheduler has no worker at all (they died or
+#: left) before it stops, keeping what was made.
+DASK_NO_WORKER_S = 60.0
+#: Seconds between two checks of a Dask cluster's workers while no result comes in.
+DASK_POLL_S = 1.0
+#: ``BuildSummary.executor`` of a build that found every sequence already made.
+NOTHING_TO_BUILD = "nothing to build"
 
 
 @dataclass
@@ -81,10 +97,23 @@ class BuildSummary:
         return d
 
     def line(self) -> str:
+        """One line for people: what was done, skipped and failed, size, time and executor."""
+        if self.executor == NOTHING_TO_BUILD:
+            return (f"done 0, skipped {self.skipped}, failed 0: nothing to build (every "
+                    "sequence is already made)")
         rate = self.px_readouts / self.seconds if self.seconds > 0 else 0.0
         return (f"done {self.done}, skipped {self.skipped}, failed {self.failed}; "
                 f"{self.bytes / 2**20:.1f} MiB in {self.seconds:.1f} s "
                 f"({rate:.3g} px·readouts/s, {self.executor})")
+
+
+class BuildFailedError(SpikeSimError, RuntimeError):
+    """Every sequence a build ran failed; ``summary`` is its :class:`BuildSummary`
+    (``build_summary.json`` is written as for any build)."""
+
+    def __init__(self, message: str, summary: BuildSummary):
+        super().__init__(message)
+        self.summary = summary
 
 
 def _remove_stale_temps(out: Path, splits) -> int:
@@ -136,6 +165,58 @@ def _check_workers(workers) -> int:
     return workers
 
 
+#: What to do when a script's top-level call of the builder runs again in its workers.
+GUARD_ADVICE = ('a script must make the call under `if __name__ == "__main__":` (each '
+                "spawned worker imports the script again)")
+
+
+def _refuse_in_spawned_import(func: str) -> None:
+    """Exit quietly with one line when called while a spawned worker process imports the
+    script that started it: the call sits at the script's top level, and a build (or
+    calibration) of its own in every worker would write into the same folder."""
+    if getattr(mp.current_process(), "_inheriting", False):
+        raise SystemExit(f"spikesim: {func} ran again in a worker process while it imported "
+                         f"the script that started the workers: {GUARD_ADVICE}")
+
+
+def _workers_did_not_start(func: str) -> SpikeSimError:
+    """The error of a pool whose workers all died before any of them was ready."""
+    return SpikeSimError(f"the worker processes of {func} died while starting, before making "
+                         f"any sequence (see their messages above): {GUARD_ADVICE}")
+
+
+def _dataset_root_of(folder: Path) -> bool:
+    """Whether ``folder`` is the root of a ``spikesim dataset`` build: it holds that
+    build's ``plan.json`` or ``build_summary.json`` (as the build writes them)."""
+    for name, key in (("plan.json", "tasks"), ("build_summary.json", "records")):
+        path = folder / name
+        try:
+            data = json.loads(path.read_text()) if path.is_file() else None
+        except (OSError, ValueError):
+            continue
+        if isinstance(data, dict) and key in data:
+            return True
+    return False
+
+
+def _check_out_dir(out: Path, name: str = "out_dir") -> None:
+    """Refuse an output folder inside an existing dataset (a split folder of it, or any
+    folder below its root) or one that holds sequence files itself: a build there would
+    nest a dataset in another one."""
+    from spikesim.io.index import _holds_sequences
+
+    full = out.resolve()
+    for parent in full.parents:
+        if _dataset_root_of(parent):
+            raise bad_value(name, str(out), f"a folder outside the dataset at {str(parent)!r} "
+                            "(it lies inside it): give that root to resume or extend it, or "
+                            "a new folder")
+    if full.is_dir() and not _dataset_root_of(full) and _holds_sequences(full):
+        raise bad_value(name, str(out), "a dataset root or a new folder, not a folder of "
+                        "sequence files (a split folder): give the folder above it to resume "
+                        "or extend that dataset, or a new folder")
+
+
 def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int = 1,
                   scheduler: str | None = None, dask_local: int | None = None,
                   progress: bool = True, limit: int | None = None,
@@ -156,11 +237,21 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         Delete the sequence files of the plan's split folders that the plan does not
         make (left by a build of an earlier version of the manifest); without it they
         are kept, indexed with the rest, and a warning names them.  Not with ``limit``.
+
+    Returns the :class:`BuildSummary`; a sequence that fails is in its ``failures``
+    (and printed) while the others go on.  Raises :class:`BuildFailedError` (its
+    ``summary`` attached) when every sequence the build ran failed, and
+    :class:`~spikesim.errors.SpikeSimError` when the workers die while starting
+    (``workers`` > 1 from a script without ``if __name__ == "__main__":``) or a
+    Dask cluster keeps no worker for :data:`DASK_NO_WORKER_S` seconds; what was made
+    until then is kept, counted in ``build_summary.json`` and indexed.  ``out_dir``
+    inside an existing dataset (one of its split folders, say) is refused.
     """
     from tqdm.auto import tqdm
 
     from spikesim.io import build_index
 
+    _refuse_in_spawned_import("build_dataset")
     workers = _check_workers(workers)
     if dask_local is not None:
         _check_workers(dask_local)
@@ -176,6 +267,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
     if out.exists() and not out.is_dir():
         raise SpikeSimFileError(f"output folder {str(out)!r} is an existing file: give a folder "
                                 "name (new or holding an earlier build)")
+    _check_out_dir(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -219,8 +311,12 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         bar.update(1)
 
     try:
-        if scheduler is not None or dask_local is not None:
-            summary.executor = _run_dask(pending, out, scheduler, dask_local, on_result)
+        if not pending:
+            summary.executor = NOTHING_TO_BUILD  # no executor started for nothing
+        elif scheduler is not None or dask_local is not None:
+            summary.executor = (f"dask scheduler {scheduler}" if scheduler is not None
+                                else f"dask LocalCluster ({dask_local} workers)")
+            _run_dask(pending, out, scheduler, dask_local, on_result)
         elif workers == 1 or len(pending) <= 1:
             summary.executor = "serial"
             frame_cache.clear()  # as a fresh process: nothing decoded by earlier work
@@ -262,6 +358,12 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         if (out / split).is_dir():
             build_index(out / split)
     _write_summary(out / "build_summary.json", summary)
+    if summary.failed and not summary.done:
+        first = summary.failures[0]
+        raise BuildFailedError(
+            f"every sequence this build ran failed ({summary.failed}; the first, "
+            f"{first['file']}: {first['error']}): see {str(out / 'build_summary.json')!r} "
+            "for all of them", summary)
     return summary
 
 
@@ -311,9 +413,11 @@ def _record_finished(pending: list[dict], out: Path, summary: BuildSummary) -> N
 STOP_GRACE_S = 10.0
 
 
-def _new_pool(workers: int) -> ProcessPoolExecutor:
+def _new_pool(workers: int, started=None) -> ProcessPoolExecutor:
+    """A pool of ``workers`` spawned processes set up by :func:`init_worker`, which sets
+    the event ``started`` (when given) once a worker is ready to run tasks."""
     return ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
-                               initializer=init_worker, initargs=(os.getpid(),))
+                               initializer=init_worker, initargs=(os.getpid(), started))
 
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
@@ -355,11 +459,16 @@ def _write_summary(path: Path, summary: BuildSummary) -> None:
 
 
 def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
+    """Run ``pending`` on pools of ``workers`` spawned processes, in batches; a pool that
+    breaks is replaced and what it held is retried alone (:func:`_retry_alone`).  Raises
+    when the first pool breaks before any worker started (the script's top level runs in
+    every worker: :data:`GUARD_ADVICE`), instead of retrying every task in vain."""
     threads = max(1, (os.cpu_count() or 1) // workers)
     queue = pool_batches(pending, workers)  # clips of one video together: frames decoded once
+    started = mp.get_context("spawn").Event()
     while queue:
         lost: list[dict] = []
-        pool = _new_pool(workers)
+        pool = _new_pool(workers, started)
         try:
             futures = {}
             while (queue or futures) and not lost:
@@ -382,6 +491,8 @@ def _run_pool(pending: list[dict], out: Path, workers: int, on_result) -> None:
         except BaseException:
             _stop_pool(pool)
             raise
+        if lost and not started.is_set():
+            raise _workers_did_not_start("build_dataset")
         # only now, with every worker of the broken pool stopped, is each
         # lost task's file final (complete and renamed, or never renamed);
         # the others are run again, each alone, so that only the culprit fails
@@ -427,35 +538,80 @@ def _lost(task: dict, exc: BaseException | None, out: Path | None = None) -> dic
                          error=f"{type(exc).__name__}: {exc or 'a worker process died'}").to_dict()
 
 
-def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) -> str:
+def _local_cluster(n: int):
+    """A local Dask cluster of ``n`` one-thread worker processes; a clear error when
+    they do not start (a script's top level run again in each of them, say)."""
+    from dask.distributed import LocalCluster
+
     try:
-        from dask.distributed import Client, LocalCluster, as_completed
+        return LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                            dashboard_address=None)
+    except Exception as exc:  # noqa: BLE001 - Dask says only "Nanny failed to start"
+        raise SpikeSimError(f"the workers of a local Dask cluster (dask_local={n}) did not "
+                            f"start ({type(exc).__name__}: {exc}; see their messages above): "
+                            f"{GUARD_ADVICE}") from None
+
+
+def _dask_workers(client) -> int:
+    """Workers the scheduler has now (0 when it does not answer)."""
+    try:
+        return len(client.nthreads())
+    except Exception:  # noqa: BLE001 - a scheduler that does not answer has none for us
+        return 0
+
+
+def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) -> None:
+    """Run ``pending`` on a Dask cluster (an existing ``scheduler`` or a local one of
+    ``dask_local`` workers), one task a sequence.  A task whose workers died fails
+    alone (Dask's ``KilledWorker``); a cluster with no worker at all for
+    :data:`DASK_NO_WORKER_S` seconds (every worker died or left) stops the build with
+    an error, where Dask would wait for workers forever."""
+    try:
+        from dask.distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - dask is a declared extra
         raise bad_value("scheduler", scheduler or dask_local,
                         "dask[distributed] installed (pip install 'spikesim[dist]')") from exc
     cluster = None
     if scheduler is not None:
         client = _connect(scheduler)
-        label = f"dask scheduler {scheduler}"
     else:
-        cluster = LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+        cluster = _local_cluster(dask_local)
         client = Client(cluster)
-        label = f"dask LocalCluster ({dask_local} workers)"
     try:
         futures = [client.submit(run_task, t, str(out.resolve()), 1, pure=False,
                                  key=f"seq-{t['file']}") for t in pending]
         by_key = {f.key: t for f, t in zip(futures, pending, strict=True)}
-        for fut in as_completed(futures):
-            try:
-                on_result(fut.result())
-            except Exception as exc:  # noqa: BLE001 - a lost worker fails only its task
-                on_result(_lost(by_key[fut.key], exc, out))
+        results = as_completed(futures)
+        checked = alone_since = None
+        while not results.is_empty():
+            batch = results.next_batch(block=False)
+            for fut in batch:
+                try:
+                    on_result(fut.result())
+                except Exception as exc:  # noqa: BLE001 - a lost worker fails only its task
+                    on_result(_lost(by_key[fut.key], exc, out))
+            if batch:
+                alone_since = None
+                continue
+            time.sleep(0.1)
+            now = time.monotonic()
+            if checked is not None and now - checked < DASK_POLL_S:
+                continue
+            checked = now
+            if _dask_workers(client):
+                alone_since = None
+            elif alone_since is None:
+                alone_since = now
+            elif now - alone_since >= DASK_NO_WORKER_S:
+                raise SpikeSimError(
+                    f"the Dask cluster has had no worker for {DASK_NO_WORKER_S:.0f} "
+                    f"s (they died or left) with {results.count()} of {len(pending)} "
+                    "sequences not made: see the workers' logs, start workers and run the "
+                    "same build again (it makes only what is missing)")
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
-    return label
 
 
 def _write_json(path: Path, data) -> None:
@@ -492,10 +648,9 @@ def _parallel_calibration(tasks: list[dict], workers: int, warm: dict,
     with tempfile.TemporaryDirectory(prefix="spikesim-calib-") as tmp:
         t0 = time.perf_counter()
         if dask_local is not None:
-            from dask.distributed import Client, LocalCluster
+            from dask.distributed import Client
 
-            cluster = LocalCluster(n_workers=dask_local, threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+            cluster = _local_cluster(dask_local)
             client = Client(cluster)
             client.run(_warm_up, warm, tmp, 1)  # on every worker at once
             submit = lambda fn, *a: client.submit(fn, *a, pure=False)  # noqa: E731
@@ -505,7 +660,8 @@ def _parallel_calibration(tasks: list[dict], workers: int, warm: dict,
                 client.close()
                 cluster.close()
         else:
-            pool = _new_pool(workers)  # as the build's: workers die with this process
+            started = mp.get_context("spawn").Event()
+            pool = _new_pool(workers, started)  # as the build's: workers die with this process
             env = contextlib.ExitStack()  # the workers start on the first submits below
             env.enter_context(worker_thread_env(threads))
             barrier = manager.Barrier(workers)
@@ -519,8 +675,10 @@ def _parallel_calibration(tasks: list[dict], workers: int, warm: dict,
             try:
                 for f in [submit(_warm_up, warm, tmp, threads, barrier) for _ in range(workers)]:
                     f.result()
-            except BaseException:
+            except BaseException as exc:
                 close()
+                if isinstance(exc, BrokenProcessPool) and not started.is_set():
+                    raise _workers_did_not_start("estimate_dataset") from None
                 raise
         try:
             ready = time.perf_counter() - t0
@@ -598,7 +756,10 @@ def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: in
     frames, a pool's share them within a batch), ``frames_to_decode`` in all.
     """
 
+    _refuse_in_spawned_import("estimate_dataset")
     workers = _check_workers(workers)
+    if out_dir is not None:
+        _check_out_dir(Path(out_dir))
     parallel = dask_local if dask_local is not None else workers
     tasks = [t.to_dict() for t in plan_tasks(manifest)]
     if limit is not None:
@@ -671,7 +832,8 @@ def estimate_dataset(manifest: Manifest, workers: int = 1, calibration_tasks: in
         "frames_to_decode": to_decode,
         "startup_seconds": startup_s,
         "compile_seconds": compile_s,
-        "executor": (f"dask LocalCluster ({dask_local} workers)" if dask_local is not None
+        "executor": (NOTHING_TO_BUILD if not tasks
+                     else f"dask LocalCluster ({dask_local} workers)" if dask_local is not None
                      else f"{workers} local processes" if workers > 1 else "serial"),
         "calibrated_on": [t["file"] for t in cal],
         "calibration_failures": [r["error"] for r in recs if r["status"] != "done"],

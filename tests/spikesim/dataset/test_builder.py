@@ -106,7 +106,7 @@ FACTORY = textwrap.dedent(
 
     def make(index, size, seed, mode="ok"):
         img = np.full(tuple(size) + (3,), 0.1 + 0.1 * index, np.float32)
-        if mode == "raise" and index == 1:
+        if mode == "raise" and index == 1 or mode == "raise_all":
             raise RuntimeError("injected failure")
         if mode == "kill" and index == 2:
             return Killer(img)
@@ -143,6 +143,86 @@ def test_failing_sequence_is_reported_and_rerun_completes(tmp_path, factory_modu
     m2 = parse_manifest(small_manifest(count=1, extra_sources=[_py_source("ok")]))
     s2 = build_dataset(m2, out, workers=1, progress=False)
     assert s2.done == 4 and s2.skipped == 1 and s2.failed == 0
+
+
+def test_build_whose_every_sequence_fails_raises(tmp_path, factory_module, capsys):
+    """Every sequence failing used to return a summary (a script went on, exit status 0):
+    it raises, with the summary attached and written; the command line still lists the
+    failures and exits 1."""
+    import json
+
+    from spikesim.cli import main
+    from spikesim.dataset import BuildFailedError
+
+    data = small_manifest()
+    data["sources"] = [_py_source("raise_all", count=2)]
+    out = tmp_path / "out"
+    with pytest.raises(BuildFailedError, match=r"every sequence this build ran failed \(2; the "
+                       r"first, inj/.*: RuntimeError: injected failure\)") as err:
+        build_dataset(parse_manifest(data), out, progress=False)
+    assert err.value.summary.failed == 2 and err.value.summary.done == 0
+    assert json.loads((out / "build_summary.json").read_text())["failed"] == 2
+    capsys.readouterr()
+    toml = tmp_path / "m.toml"
+    toml.write_text('[dataset]\nname = "t"\nsize = [24, 40]\nwindow = 9\n'
+                    '[[sources]]\nkind = "python"\nfactory = "inject_scenes:make"\ncount = 2\n'
+                    'split = "inj"\noptions = {mode = "raise_all"}\n')
+    assert main(["dataset", str(toml), "--out", str(tmp_path / "cli"), "--quiet"]) == 1
+    cap = capsys.readouterr()
+    assert "done 0, skipped 0, failed 2" in cap.out and "error" not in cap.err
+    assert cap.out.count("injected failure") >= 2
+
+
+def test_nothing_to_build_says_so(tmp_path):
+    """A re-run that finds every sequence made starts no executor and says so (it said
+    "serial" whatever --workers asked for)."""
+    m = parse_manifest(small_manifest(count=2))
+    build_dataset(m, tmp_path / "ds", progress=False)
+    for kw in ({"workers": 2}, {"dask_local": 2}, {}):
+        again = build_dataset(m, tmp_path / "ds", progress=False, **kw)
+        assert (again.done, again.skipped, again.failed) == (0, 2, 0)
+        assert again.executor == "nothing to build"
+        assert again.line() == ("done 0, skipped 2, failed 0: nothing to build (every sequence "
+                                "is already made)")
+    est = estimate_dataset(m, workers=2, out_dir=tmp_path / "ds")
+    assert est["to_make"] == 0 and est["executor"] == "nothing to build"
+
+
+@pytest.mark.parametrize("inside", ["train", "train/deeper", "other"])
+def test_out_inside_an_existing_dataset_is_refused(tmp_path, inside, capsys):
+    """``--out ds/train`` nested a new dataset in a split folder: a folder inside an
+    existing dataset is refused, naming the root to give, before anything is written."""
+    from spikesim.cli import main
+
+    m = parse_manifest(small_manifest(count=1))
+    build_dataset(m, tmp_path / "ds", progress=False)
+    before = sorted(tmp_path.rglob("*"))
+    with pytest.raises(SpikeSimValueError, match=r"out_dir='.*' is invalid: expected a folder "
+                       r"outside the dataset at '.*ds' \(it lies inside it\): give that root"):
+        build_dataset(m, tmp_path / "ds" / inside, progress=False)
+    with pytest.raises(SpikeSimValueError, match="outside the dataset"):
+        estimate_dataset(m, out_dir=tmp_path / "ds" / inside)
+    assert sorted(tmp_path.rglob("*")) == before
+    capsys.readouterr()
+    target = tmp_path / "ds" / inside
+    assert main(["dataset", "builtin:demo", "--out", str(target), "--limit", "1"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"spikesim dataset: error: --out={str(target)!r} is invalid")
+    assert "\n" not in err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_out_holding_sequence_files_is_refused(tmp_path):
+    """A folder of sequence files that is not a dataset root (a split folder copied
+    elsewhere, say) is refused too; the dataset root itself is taken as it is."""
+    import shutil
+
+    m = parse_manifest(small_manifest(count=1))
+    build_dataset(m, tmp_path / "ds", progress=False)
+    shutil.copytree(tmp_path / "ds" / "train", tmp_path / "copy")
+    with pytest.raises(SpikeSimValueError, match=r"out_dir=.* not a folder of sequence files"):
+        build_dataset(m, tmp_path / "copy", progress=False)
+    assert build_dataset(m, tmp_path / "ds", progress=False).skipped == 1
 
 
 def test_killed_worker_loses_nothing(tmp_path, factory_module):
