@@ -61,8 +61,9 @@ __all__ = ["BuildFailedError", "BuildSummary", "build_dataset", "check_executors
 
 #: Seconds to wait for a Dask scheduler to answer.
 SCHEDULER_TIMEOUT_S = 10
-#: Seconds a Dask build waits while the scheduler has no worker at all (they died or
-#: left) before it stops, keeping what was made.
+#: Seconds a Dask build waits while the scheduler has no worker left (every worker it
+#: had died or left) before it stops, keeping what was made.  A scheduler that has had
+#: no worker yet (an adaptive cluster scaling up from zero) is waited for, with a warning.
 DASK_NO_WORKER_S = 60.0
 #: Seconds between two checks of a Dask cluster's workers while no result comes in.
 DASK_POLL_S = 1.0
@@ -203,7 +204,7 @@ def _check_out_dir(out: Path, name: str = "out_dir") -> None:
     """Refuse an output folder inside an existing dataset (a split folder of it, or any
     folder below its root) or one that holds sequence files itself: a build there would
     nest a dataset in another one."""
-    from spikesim.io.index import _holds_sequences
+    from spikesim.io.index import holds_sequences
 
     full = out.resolve()
     for parent in full.parents:
@@ -211,7 +212,7 @@ def _check_out_dir(out: Path, name: str = "out_dir") -> None:
             raise bad_value(name, str(out), f"a folder outside the dataset at {str(parent)!r} "
                             "(it lies inside it): give that root to resume or extend it, or "
                             "a new folder")
-    if full.is_dir() and not _dataset_root_of(full) and _holds_sequences(full):
+    if full.is_dir() and not _dataset_root_of(full) and holds_sequences(full):
         raise bad_value(name, str(out), "a dataset root or a new folder, not a folder of "
                         "sequence files (a split folder): give the folder above it to resume "
                         "or extend that dataset, or a new folder")
@@ -563,9 +564,10 @@ def _dask_workers(client) -> int:
 def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) -> None:
     """Run ``pending`` on a Dask cluster (an existing ``scheduler`` or a local one of
     ``dask_local`` workers), one task a sequence.  A task whose workers died fails
-    alone (Dask's ``KilledWorker``); a cluster with no worker at all for
+    alone (Dask's ``KilledWorker``); a cluster left with no worker for
     :data:`DASK_NO_WORKER_S` seconds (every worker died or left) stops the build with
-    an error, where Dask would wait for workers forever."""
+    an error, where Dask would wait for workers forever.  Before its first worker
+    joins, the build waits (a warning says so)."""
     try:
         from dask.distributed import Client, as_completed
     except ImportError as exc:  # pragma: no cover - dask is a declared extra
@@ -583,6 +585,7 @@ def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) 
         by_key = {f.key: t for f, t in zip(futures, pending, strict=True)}
         results = as_completed(futures)
         checked = alone_since = None
+        seen = _dask_workers(client) > 0  # a worker was there: its loss can be told
         while not results.is_empty():
             batch = results.next_batch(block=False)
             for fut in batch:
@@ -599,7 +602,13 @@ def _run_dask(pending: list[dict], out: Path, scheduler, dask_local, on_result) 
                 continue
             checked = now
             if _dask_workers(client):
-                alone_since = None
+                seen, alone_since = True, None
+            elif not seen:
+                if alone_since is None:
+                    warnings.warn(f"the Dask scheduler {scheduler or ''} has no worker yet: "
+                                  "waiting for workers to join (start them with `dask worker "
+                                  "SCHEDULER_ADDRESS`)", stacklevel=2)
+                    alone_since = now
             elif alone_since is None:
                 alone_since = now
             elif now - alone_since >= DASK_NO_WORKER_S:

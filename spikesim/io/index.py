@@ -31,8 +31,8 @@ from spikesim.io._checks import check_flag
 from spikesim.io.atomic import atomic_path, is_temp_name
 from spikesim.io.h5 import Sequence, read_header
 
-__all__ = ["INDEX_NAME", "Dataset", "build_index", "dataset_splits", "load_index", "open_dataset",
-           "resolve_dataset"]
+__all__ = ["INDEX_NAME", "Dataset", "build_index", "dataset_splits", "holds_sequences",
+           "load_index", "open_dataset", "resolve_dataset"]
 
 INDEX_NAME = "index.json"
 INDEX_FORMAT = "spikesim-index"
@@ -115,7 +115,9 @@ def _check_folder(folder) -> Path:
     return folder
 
 
-def _holds_sequences(folder: Path) -> bool:
+def holds_sequences(folder: Path) -> bool:
+    """True when ``folder`` holds sequences itself: an index, or a spike file that is
+    not a writer's temporary."""
     return (folder / INDEX_NAME).is_file() or any(
         p.suffix.lower() in _SUFFIXES and not is_temp_name(p) for p in folder.iterdir()
         if p.is_file())
@@ -124,7 +126,7 @@ def _holds_sequences(folder: Path) -> bool:
 def dataset_splits(folder: str | os.PathLike) -> list[str]:
     """Names of the split folders (sub-folders holding sequences) of a dataset root."""
     folder = _check_folder(folder)
-    return sorted(p.name for p in folder.iterdir() if p.is_dir() and _holds_sequences(p))
+    return sorted(p.name for p in folder.iterdir() if p.is_dir() and holds_sequences(p))
 
 
 def resolve_dataset(path: str | os.PathLike, split: str | None = None) -> Path:
@@ -148,7 +150,7 @@ def resolve_dataset(path: str | os.PathLike, split: str | None = None) -> Path:
     if split is not None and not isinstance(split, str):
         raise bad_value("split", split, "a split name (a string)")
     splits = dataset_splits(folder)
-    if _holds_sequences(folder):
+    if holds_sequences(folder):
         if split is None or split == folder.name:
             return folder
         if split not in splits:

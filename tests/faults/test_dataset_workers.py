@@ -118,3 +118,41 @@ def test_script_building_with_workers_outside_a_main_guard_fails_clearly(tmp_pat
     assert "bootstrapping phase" not in proc.stderr  # each worker says it in one line
     assert "build_dataset ran again in a worker process" in proc.stderr
     assert not list((tmp_path / "ds").rglob("*.h5"))
+
+
+def test_dask_build_waits_with_a_warning_for_a_scheduler_first_worker(tmp_path):
+    """A scheduler that has had no worker yet (an adaptive cluster scaling up from
+    zero) is waited for, with a warning, not given up on: once a worker joins, the
+    build finishes."""
+    pytest.importorskip("distributed")
+    import warnings
+
+    from dask.distributed import LocalCluster
+
+    from spikesim.dataset import build_dataset, parse_manifest
+
+    manifest = parse_manifest({**MANIFEST, "sources": [{**MANIFEST["sources"][0], "count": 1}]})
+    outcome = {}
+
+    def run(address):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                outcome["summary"] = build_dataset(manifest, tmp_path / "ds", scheduler=address,
+                                                   progress=False)
+            except BaseException as exc:  # noqa: BLE001 - checked below
+                outcome["error"] = exc
+        outcome["warnings"] = [str(w.message) for w in caught]
+
+    with LocalCluster(n_workers=0, dashboard_address=None, processes=False) as cluster:
+        thread = threading.Thread(target=run, args=(cluster.scheduler_address,), daemon=True)
+        thread.start()
+        thread.join(timeout=3)
+        assert thread.is_alive()  # waiting, not refused
+        cluster.scale(1)
+        thread.join(timeout=120)
+        assert not thread.is_alive(), "the build did not finish once a worker joined"
+    assert "error" not in outcome, outcome
+    assert outcome["summary"].done == 1
+    assert any("has no worker yet: waiting for workers to join" in w
+               for w in outcome["warnings"]), outcome["warnings"]
