@@ -9,7 +9,8 @@ data loader), :mod:`~spikejdd.train.scenes` and
 :mod:`~spikejdd.train.pictures` (what the model trains on),
 :mod:`~spikejdd.train.validation` (the Table-1-shaped validation sweep and
 each chunk's benchmark row), :mod:`~spikejdd.train.synthesis` (a fixed set
-on disk) and :mod:`~spikejdd.train.export` (shippable weights).
+on disk), :mod:`~spikejdd.train.workers` (loader workers that die with the
+training process) and :mod:`~spikejdd.train.export` (shippable weights).
 """
 
 from spikejdd.train.config import MODEL_PRESETS, TrainConfig

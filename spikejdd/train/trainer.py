@@ -10,7 +10,8 @@ entry and a model object that optimizes, validates and saves itself).
   batch of step ``s`` from ``(seed, s)``) or files
   (:class:`spikejdd.data.SpikeWindowDataset`, a permutation per epoch from
   ``(seed, epoch)``, crops and flips from ``(seed, epoch, index)``).  Loader
-  workers always start with ``spawn``.
+  workers always start with ``spawn`` and exit when the training process dies
+  (:mod:`spikejdd.train.workers`).
 * Determinism: the run's seed fixes the initial weights and all data; the
   checkpoint carries the model, optimizer, scheduler and :class:`TrainState`,
   so a resumed run ends with the weights of an uninterrupted one.
@@ -20,8 +21,10 @@ entry and a model object that optimizes, validates and saves itself).
 
 from __future__ import annotations
 
+import functools
 import json
 import os
+import threading
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -36,6 +39,7 @@ from spikejdd.models.pretrained import resolve_weights
 from spikejdd.models.sjdd import SJDDNet, count_parameters
 from spikejdd.train.config import TrainConfig
 from spikejdd.train.state import TrainState
+from spikejdd.train.workers import watch_parent
 from spikesim.errors import bad_value
 
 __all__ = ["Trainer", "EpochSampler", "noise_map_target", "evaluate_psnr"]
@@ -226,11 +230,18 @@ class Trainer:
                                       "levels": cfg.val_levels}
 
     def _loader(self, dataset, **kw):
+        """A loader of ``cfg.workers`` spawned processes (none: this one), each watching
+        this process: a worker outlives a killed training by at most a second
+        (:mod:`spikejdd.train.workers`)."""
         workers = self.cfg.workers
+        watch = None
+        if workers > 0:
+            main_thread = threading.current_thread() is threading.main_thread()
+            watch = functools.partial(watch_parent, os.getpid(), main_thread)
         return torch.utils.data.DataLoader(
             dataset, num_workers=workers, pin_memory=self.device.type == "cuda",
             multiprocessing_context="spawn" if workers > 0 else None,
-            persistent_workers=False, **kw)
+            persistent_workers=False, worker_init_fn=watch, **kw)
 
     def batches(self):
         """Training batches from the current state onwards (endless)."""
