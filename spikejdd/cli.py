@@ -321,8 +321,9 @@ def _train(args) -> int:
     done, first = summary["steps_done"], summary["resumed_at_step"]
     this_call = (f" ({done - first} after resuming at step {first}, "
                  f"{summary['minutes_this_call']:.1f} min)" if first else "")
-    print(f"trained {done} steps in {summary['minutes']:.1f} min{this_call}; "
-          f"best eval PSNR {summary['best_psnr']:.2f} dB; run folder {cfg.get('out', 'runs/sjdd')}")
+    print(f"trained {done} steps in {summary['minutes']:.1f} min{this_call} (and "
+          f"{summary['setup_minutes']:.1f} min of set-up); best eval PSNR "
+          f"{summary['best_psnr']:.2f} dB; run folder {cfg.get('out', 'runs/sjdd')}")
     return 0
 
 

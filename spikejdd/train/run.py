@@ -55,8 +55,15 @@ def _first_missing(path: Path) -> Path | None:
 
 def train(cfg: TrainConfig | dict) -> dict:
     """Run (or resume) a training run; returns the final summary (also in ``run.json``):
-    ``steps_done`` and ``minutes`` count the whole run, ``resumed_at_step`` and
-    ``minutes_this_call`` this call.
+    ``steps_done``, ``minutes`` and ``setup_minutes`` count the whole run,
+    ``resumed_at_step``, ``minutes_this_call`` and ``setup_minutes_this_call`` this call.
+
+    Times are wall-clock minutes. ``minutes`` is training time: it starts when a call's
+    first batch is ready and counts steps, validations and checkpoints. What comes
+    before is ``setup_minutes``: building the model and data, resuming, starting the
+    loader's workers, compiling the simulation kernels (numba, on the first run after
+    an install: a minute or more) and building the validation sweep's frames. The
+    time limit (``time_limit_min``) counts the whole call, setup included.
 
     Writes under ``cfg.out``: ``run.json``, ``log.jsonl`` (one validation per
     line), ``bench.jsonl`` (one benchmark row per chunk, sweep validation
@@ -64,6 +71,7 @@ def train(cfg: TrainConfig | dict) -> dict:
     """
     from spikejdd.train.trainer import Trainer
 
+    t_call = time.time()
     if isinstance(cfg, dict):
         cfg = TrainConfig.from_dict(cfg)
     if not isinstance(cfg, TrainConfig):
@@ -92,9 +100,13 @@ def train(cfg: TrainConfig | dict) -> dict:
             _keep_rows_up_to(out / log, tr.state.step)  # (a run killed after them) go
     t_start = time.time()
     start_step, start_minutes = tr.state.step, tr.state.minutes
+    start_setup, t_train = tr.state.setup_minutes, None  # t_train: the first batch's arrival
 
     def minutes() -> float:  # the run's training time, over every call
-        return start_minutes + (time.time() - t_start) / 60
+        return start_minutes + (0.0 if t_train is None else (time.time() - t_train) / 60)
+
+    def setup_minutes() -> float:  # the run's set-up time (before each call's first batch)
+        return start_setup + ((t_train or time.time()) - t_call) / 60
 
     resumed_here = bool(path) and Path(path).resolve() == (out / "last.pt").resolve()
     saved_step = start_step if resumed_here else -1  # the step out/last.pt holds (-1: none)
@@ -105,6 +117,11 @@ def train(cfg: TrainConfig | dict) -> dict:
     batches = tr.batches() if tr.state.step < cfg.steps else iter(())
     try:
         for batch in batches:
+            if t_train is None:  # the set-up ends: the kernels the validation uses compiled too
+                if main and cfg.validation_kind() == "sweep":
+                    tr.validation_frames()
+                t_train = time.time()
+                tr.state.setup_minutes = setup_minutes()
             with deferred_stops():  # a stop waits for the step's end: the state saved is whole
                 lv = tr.step(batch)
                 st = tr.state
@@ -123,7 +140,7 @@ def train(cfg: TrainConfig | dict) -> dict:
             if main and (st.step % cfg.eval_every == 0 or last):
                 res = tr.validate()
                 res.update(step=st.step, train_loss=running, minutes=minutes(),
-                           lr=tr.scheduler.get_last_lr()[0])
+                           setup_minutes=st.setup_minutes, lr=tr.scheduler.get_last_lr()[0])
                 st.history.append(res)
                 _append(out / "log.jsonl", res)
                 bar.write(f"step {st.step}: validation PSNR {res['psnr_linear']:.2f} dB "
@@ -171,8 +188,9 @@ def train(cfg: TrainConfig | dict) -> dict:
     bar.close()
     st = tr.state
     summary = dict(tr.run_info, steps_done=st.step, best_psnr=st.best_psnr, history=st.history,
-                   minutes=minutes(), resumed_at_step=start_step,
-                   minutes_this_call=(time.time() - t_start) / 60)
+                   minutes=minutes(), setup_minutes=setup_minutes(), resumed_at_step=start_step,
+                   minutes_this_call=minutes() - start_minutes,
+                   setup_minutes_this_call=setup_minutes() - start_setup)
     if main:
         (out / "run.json").write_text(json.dumps(summary, indent=1, default=str))
     tr.close()

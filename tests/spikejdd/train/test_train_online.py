@@ -184,6 +184,37 @@ def test_two_chunks_equal_one_uninterrupted_run(tmp_path):
     assert run["config"]["online"] and run["data"]["validation"] == "sweep"
 
 
+def test_set_up_time_is_not_counted_as_training_time(tmp_path, monkeypatch, capsys):
+    """A cold first run compiles the simulation kernels (a minute or more) before its
+    first batch: log.jsonl's ``minutes`` counted it as training. It is set-up now, in
+    ``setup_minutes`` (log rows, run.json, last.pt), summed over the chunks of a run."""
+    import time
+
+    from spikejdd.train.trainer import Trainer
+
+    delay, real = 4.0, Trainer.batches
+
+    def slow_batches(self):
+        time.sleep(delay)  # as the kernels' compilation before the first batch
+        yield from real(self)
+
+    monkeypatch.setattr(Trainer, "batches", slow_batches)
+    assert _chunk(tmp_path / "run", 2) == 0
+    row = json.loads((tmp_path / "run" / "log.jsonl").read_text().splitlines()[-1])
+    assert row["step"] == 2 and row["minutes"] * 60 < delay  # (old code: delay and more)
+    assert delay <= row["setup_minutes"] * 60
+    assert "min of set-up" in capsys.readouterr().out
+    first = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert first["minutes"] * 60 < delay <= first["setup_minutes"] * 60
+    assert load_checkpoint(tmp_path / "run" / "last.pt")["train"]["setup_minutes"] * 60 >= delay
+    assert _chunk(tmp_path / "run", 3) == 0
+    second = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert delay <= second["setup_minutes_this_call"] * 60
+    assert second["setup_minutes"] == pytest.approx(first["setup_minutes"]
+                                                    + second["setup_minutes_this_call"])
+    assert second["minutes"] * 60 < 2 * delay
+
+
 def test_clip_samples_are_cut_from_cached_video_key_frames(tmp_path):
     """A frame folder becomes samples: still, slowed or sped up; its scene is cached."""
     import imageio.v3 as iio
