@@ -107,14 +107,42 @@ class TrainConfig:
     def resume_differences(self, saved: dict) -> list[str]:
         """The settings that differ from ``saved`` (the ``train_config`` a checkpoint
         holds) among those a resumed run may not change (not in
-        :data:`RESUME_MAY_CHANGE`): ``["crop=48 (the run has 64)", …]``."""
+        :data:`RESUME_MAY_CHANGE`): ``["crop=48 (the run has 64)", …]``.  A setting
+        that has no effect in either run (:meth:`unused_settings`) may differ, and
+        ``validation`` is compared as the kind it resolves to ("auto" is "sweep" online)."""
+        known = {f.name for f in fields(self)}
+        theirs = TrainConfig(**{k: v for k, v in saved.items() if k in known})
+        unused = self.unused_settings() & theirs.unused_settings()
         out = []
         for f in fields(self):
-            if f.name in RESUME_MAY_CHANGE or f.name not in saved:
+            if f.name in RESUME_MAY_CHANGE or f.name in unused or f.name not in saved:
+                continue
+            if f.name == "validation" and self.validation_kind() == theirs.validation_kind():
                 continue
             mine = _comparable(f.name, getattr(self, f.name))
             if mine != _comparable(f.name, saved[f.name]):
                 out.append(f"{f.name}={getattr(self, f.name)!r} (the run has {saved[f.name]!r})")
+        return out
+
+    def unused_settings(self) -> set[str]:
+        """The settings that have no effect given the others: the epoch the step decay
+        counts in (``lr_step_epochs``, ``epoch_steps``) under an explicit ``lr_step``;
+        ``epoch_steps`` and the clips with file data; ``clip_fraction`` without clips;
+        ``flips`` online (every sample is drawn afresh); the sweep's settings under
+        validation on files, and the files' under the sweep."""
+        out = set()
+        if self.lr_step is not None:
+            out |= {"lr_step_epochs", "epoch_steps"}
+        if self.online:
+            out.add("flips")
+        else:
+            out |= {"epoch_steps", "clips", "clip_fraction"}
+        if not self.clips:
+            out.add("clip_fraction")
+        if self.validation_kind() == "files":
+            out |= {"val_size", "val_speeds", "val_levels", "bench_methods"}
+        else:
+            out |= {"eval_data", "eval_frames"}
         return out
 
     def validation_kind(self) -> str:

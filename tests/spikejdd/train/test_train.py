@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -115,6 +116,29 @@ def test_resume_with_other_settings_is_refused(tiny_data, tmp_path, monkeypatch)
     done = train(_cfg(root.name, tmp_path / "r", resume="auto", steps=2, eval_every=1,
                       checkpoint_every=1, threads=1))
     assert done["steps_done"] == 2
+
+
+def test_resume_allows_differences_in_settings_without_effect(tiny_data, tmp_path):
+    """--epoch-steps sizes the decay interval only without an explicit --lr-step (and
+    only online): a resume that changes it under --lr-step was refused as a change of
+    settings. Settings that have no effect in either run may differ; the same setting
+    where it has an effect is still refused."""
+    root, _ = tiny_data
+    train(_cfg(root, tmp_path / "r", steps=1))  # lr_step=3, file data
+    done = train(_cfg(root, tmp_path / "r", resume="auto", steps=2, epoch_steps=99,
+                      lr_step_epochs=7, clip_fraction=0.5, val_size=[20, 20]))
+    assert done["steps_done"] == 2
+    with pytest.raises(SpikeSimValueError, match=r"these differ: lr_step=None \(the run has "
+                       r"3\) \(its run"):  # (last.pt now holds the settings it was given)
+        train(_cfg(root, tmp_path / "r", resume="auto", steps=3, lr_step=None,
+                   lr_step_epochs=7, epoch_steps=99))
+    online = TrainConfig(online=True, lr_step=5, epoch_steps=240, validation="auto")
+    same = dict(asdict(online), epoch_steps=99, flips=False, validation="sweep",
+                eval_frames=3)
+    assert online.resume_differences(same) == []
+    unset = TrainConfig(online=True, epoch_steps=240)  # here it sets the decay interval
+    assert unset.resume_differences(dict(asdict(unset), epoch_steps=99)) == [
+        "epoch_steps=240 (the run has 99)"]
 
 
 def test_train_says_where_it_validates_and_names_its_split_flags(tiny_data, tmp_path,
