@@ -286,3 +286,20 @@ def test_torchrun_two_cpu_processes(tiny_data, tmp_path):
     run = json.loads((tmp_path / "run" / "run.json").read_text())
     assert run["world_size"] == 2 and run["steps_done"] == 2
     assert proc.stdout.count("trained 2 steps") == 1  # only rank 0 reports
+
+
+def test_fine_tuning_advice_lowers_the_learning_rate():
+    """docs/sjdd.md tells a user fine-tuning with --init to lower the learning rate, with
+    the flag and a value (a tenth of the default at most), in prose and in its tested
+    example."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[3] / "docs" / "sjdd.md").read_text()
+    para = text[text.index("**Fine-tuning.**"):]
+    para = para[:para.index("\n**", 1)]  # up to the next paragraph with a bold lead
+    commands = [c for c in re.findall(r"spikejdd train[^`]*", para) if "--init" in c]
+    assert len(commands) >= 2, commands
+    for command in commands:
+        lr = re.search(r"--lr (\S+)", command)
+        assert lr and float(lr[1]) <= TrainConfig().lr / 10, command
