@@ -71,7 +71,7 @@ def train(cfg: TrainConfig | dict) -> dict:
     """
     from spikejdd.train.trainer import Trainer
 
-    t_call = time.time()
+    t_call = time.time()  # the time limit counts from here: the whole call
     if isinstance(cfg, dict):
         cfg = TrainConfig.from_dict(cfg)
     if not isinstance(cfg, TrainConfig):
@@ -98,7 +98,6 @@ def train(cfg: TrainConfig | dict) -> dict:
         (out / "run.json").write_text(json.dumps(tr.run_info, indent=1, default=str))
         for log in ("log.jsonl", "bench.jsonl"):  # rows of steps the checkpoint does not hold
             _keep_rows_up_to(out / log, tr.state.step)  # (a run killed after them) go
-    t_start = time.time()
     start_step, start_minutes = tr.state.step, tr.state.minutes
     start_setup, t_train = tr.state.setup_minutes, None  # t_train: the first batch's arrival
 
@@ -136,7 +135,7 @@ def train(cfg: TrainConfig | dict) -> dict:
                                 lr=f"{tr.scheduler.get_last_lr()[0]:.1e}")
                 seen, t_last = 0, now
             bar.update(1)
-            last = st.step >= cfg.steps or tr.over_time(t_start)
+            last = st.step >= cfg.steps or tr.over_time(t_call)
             if main and (st.step % cfg.eval_every == 0 or last):
                 res = tr.validate()
                 res.update(step=st.step, train_loss=running, minutes=minutes(),

@@ -384,6 +384,8 @@ class Trainer:
             dist.destroy_process_group()
 
     def over_time(self, t_start: float) -> bool:
+        """Whether ``time_limit_min`` minutes have passed since ``t_start`` (``time.time()``,
+        seconds; the start of the call); under DDP every rank gets the same answer."""
         lim = self.cfg.time_limit_min
         over = lim is not None and time.time() - t_start > 60 * lim
         if self.distributed and lim is not None:  # every rank stops together
