@@ -35,8 +35,8 @@ from spikejdd.metrics import score
 from spikejdd.registry import call_method, get_method
 from spikejdd.runtime import describe_machine, machine_info
 from spikesim.errors import SpikeSimError, SpikeSimFileError, SpikeSimValueError, bad_value
-from spikesim.io.atomic import atomic_path
 from spikesim.io import sequence_labels  # shared with `spikesim info`
+from spikesim.io.atomic import atomic_path
 from spikesim.srgb import linear_to_srgb8
 
 __all__ = ["Frame", "frames_from_dataset", "frames_from_simulation", "run", "sweep",

@@ -198,8 +198,8 @@ def test_read_dat_guesses_the_size_of_a_truncated_capture_with_partial_drop(tmp_
     assert "assumed 400x250" in text and "7 trailing bytes" in text
     assert "the partial frame is ignored" in text
     path, spikes = _truncated_vidar(tmp_path, frames=3)
-    with pytest.raises(SpikeSimFormatError, match=r"could be any of 400x250, 416x250, 448x256 \(W x H\); "
-                                                  r"pass height and width \(--height and"):
+    with pytest.raises(SpikeSimFormatError, match=r"could be any of 400x250, 416x250, 448x256 "
+                                                  r"\(W x H\); pass height and width"):
         read_dat(path, partial="drop")
     with pytest.warns(UserWarning, match="the partial frame is ignored"):
         np.testing.assert_array_equal(read_dat(path, 250, 400, partial="drop"), spikes)
