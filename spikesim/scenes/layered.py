@@ -69,9 +69,10 @@ class Sprites(ProceduralScene):
         self._bg = load_image(background, (h, w))
         self.radius = radius_frac * min(h, w)
         rng = np.random.default_rng(self.seed)
+        r = self.radius  # (a side under 2r + 1 pixels leaves the sprites no room: they stay at r)
         self._start = np.stack(
-            [rng.uniform(self.radius, w - 1 - self.radius, n_sprites),
-             rng.uniform(self.radius, h - 1 - self.radius, n_sprites)], 1)
+            [rng.uniform(r, max(r, w - 1 - r), n_sprites),
+             rng.uniform(r, max(r, h - 1 - r), n_sprites)], 1)
         angle = rng.uniform(0, 2 * np.pi, n_sprites)
         factors = np.array([1.0, 0.75, 0.55, 0.4] + [0.3] * 12)[:n_sprites]
         self._vel = speed * factors[:, None] * np.stack([np.cos(angle), np.sin(angle)], 1)

@@ -63,7 +63,7 @@ def cover_resize(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     h, w = size
     ih, iw = image.shape[:2]
     scale = max(h / ih, w / iw)
-    ch, cw = min(ih, round(h / scale)), min(iw, round(w / scale))
+    ch, cw = min(ih, max(1, round(h / scale))), min(iw, max(1, round(w / scale)))
     top, left = (ih - ch) // 2, (iw - cw) // 2
     crop = np.ascontiguousarray(image[top : top + ch, left : left + cw], dtype=np.float32)
     out = resize_linear(crop, size)

@@ -217,3 +217,20 @@ def test_picture_radiance_stays_within_its_texture(name, motion):
     scene = sc.procedural(name, motion=motion, size=(96, 96), speed=3000.0)
     peak = max(float(scene.radiance(t).max()) for t in np.linspace(0.0, 0.02, 9))
     assert 0.9 < peak <= 1.0
+
+
+@pytest.mark.parametrize("size", [(4096, 1), (1, 4096), (2, 40000)])
+def test_every_built_in_scene_renders_at_a_long_thin_size(size):
+    """A size far from the picture's aspect crops the picture to at least one pixel
+    (it cropped to none, and OpenCV's resize failed, at 4096x1)."""
+    import spikesim as ss
+
+    for name in ss.scenes.list_scenes():
+        try:
+            scene = ss.scenes.procedural(name, size=size)
+        except SpikeSimValueError as exc:  # a scene that needs room says so (the chart)
+            assert str(exc).startswith(f"size={size}"), exc
+            continue
+        for t in (0.0, 0.01):
+            frame = scene.radiance(t)
+            assert frame.shape == (*size, 3) and np.isfinite(frame).all(), name
