@@ -103,7 +103,7 @@ def make_path(
         return shake, 20 * math.pi
     if motion == "homography":
         a = 0.08 * side
-        x1, y1 = width - 1, height - 1
+        x1, y1 = max(width - 1, 1), max(height - 1, 1)  # (a box, even for a one-pixel side)
         corners = np.array([[0, 0], [x1, 0], [x1, y1], [0, y1]], float)
         ph = np.array([0.0, 1.7, 3.1, 4.4])
         fx = np.array([1.0, 1.3, 0.8, 1.1])

@@ -234,3 +234,6 @@ def test_every_built_in_scene_renders_at_a_long_thin_size(size):
         for t in (0.0, 0.01):
             frame = scene.radiance(t)
             assert frame.shape == (*size, 3) and np.isfinite(frame).all(), name
+    for motion in ss.scenes.list_motions():
+        frame = ss.scenes.procedural("astronaut", motion=motion, size=size).radiance(0.01)
+        assert frame.shape == (*size, 3) and np.isfinite(frame).all(), motion
