@@ -53,10 +53,16 @@ def run(args) -> int:
         if not sep or not name.strip():
             raise SpikeSimValueError(f"--set {item!r}: expected NAME=VALUE")
         variables[name.strip()] = value
+    from spikesim._validate import check_int
     from spikesim.dataset.build import check_executors
 
+    check_int("--workers", args.workers, 1, 1024, unit="processes")
+    if args.dask_local is not None:
+        check_int("--dask-local", args.dask_local, 1, 1024, unit="Dask workers")
+    if args.limit is not None:
+        check_int("--limit", args.limit, 1, unit="sequences")
     check_executors(args.workers, args.scheduler, args.dask_local,
-                        names=("--workers", "--scheduler", "--dask-local"))
+                    names=("--workers", "--scheduler", "--dask-local"))
     manifest = load_manifest(args.manifest, variables)
     if args.dry_run:
         try:
@@ -86,11 +92,6 @@ def run(args) -> int:
         return 0
     if not args.out:
         raise SpikeSimValueError("--out is required (the output folder)")
-    from spikesim._validate import check_int
-
-    check_int("--workers", args.workers, 1, 1024, unit="processes")
-    if args.limit is not None:
-        check_int("--limit", args.limit, 1, unit="sequences")
     from spikesim.workload import announce_cold_cache
 
     announce_cold_cache("spikesim dataset")

@@ -65,3 +65,18 @@ def test_spikejdd_loaders_and_commands_on_a_root(root, tmp_path, capsys):
     assert main(["train", "--data", str(root), "--config", str(cfg), "--out",
                  str(tmp_path / "run2"), "--quiet"]) == 1
     assert "['eval', 'train']" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("flags, named", [
+    (["--dask-local", "-1", "--dry-run"], "--dask-local=-1 is invalid"),
+    (["--dask-local", "0"], "--dask-local=0 is invalid"),
+    (["--workers", "0", "--dry-run"], "--workers=0 is invalid"),
+    (["--limit", "0", "--dry-run"], "--limit=0 is invalid"),
+])
+def test_dataset_counts_are_checked_as_options_before_a_dry_run(flags, named, tmp_path, capsys):
+    """A dry run estimated a build of -1 Dask workers; a build named ``workers=`` for
+    ``--dask-local``."""
+    assert spikesim_main(["dataset", "builtin:demo", "--out", str(tmp_path / "d"), *flags]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"spikesim dataset: error: {named}"), err
+    assert not (tmp_path / "d").exists()
