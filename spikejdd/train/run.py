@@ -43,6 +43,23 @@ def _keep_rows_up_to(path: Path, step: int) -> None:
         path.write_text("".join(r + "\n" for r in kept), encoding="utf-8")
 
 
+def _refuse_results_without_checkpoint(cfg: TrainConfig) -> None:
+    """Refuse to start afresh (``resume`` None or "auto") in a folder holding an earlier
+    run's ``best.pt`` or validation rows but no ``last.pt``: a run stopped before its
+    first checkpoint, whose results the new run would overwrite."""
+    out = Path(cfg.out)
+    if cfg.resume not in (None, "auto") or (out / "last.pt").exists():
+        return
+    held = [name for name in ("best.pt", "log.jsonl")
+            if (out / name).is_file() and (out / name).stat().st_size > 0]
+    if held:
+        raise bad_value("out", str(cfg.out), "a folder without an earlier run's results: it "
+                        f"holds {' and '.join(held)} but no last.pt to resume from (that run "
+                        "stopped before its first checkpoint; checkpoint_every, or "
+                        "--checkpoint-every, sets how often they come); choose another "
+                        "folder, or remove those files to start over")
+
+
 def _first_missing(path: Path) -> Path | None:
     """The outermost folder of ``path`` that does not exist yet (None: it exists)."""
     missing = None
@@ -81,6 +98,7 @@ def train(cfg: TrainConfig | dict) -> dict:
         # training from scratch would overwrite the run's checkpoints and log
         raise bad_value("out", str(cfg.out), "a folder without a run: it holds one (last.pt); "
                         "resume='auto' (--resume auto) continues it, or choose another folder")
+    _refuse_results_without_checkpoint(cfg)
     made = _first_missing(Path(cfg.out))
     try:
         tr = Trainer(cfg)

@@ -303,3 +303,23 @@ def test_fine_tuning_advice_lowers_the_learning_rate():
     for command in commands:
         lr = re.search(r"--lr (\S+)", command)
         assert lr and float(lr[1]) <= TrainConfig().lr / 10, command
+
+
+@pytest.mark.parametrize("resume", [None, "auto"])
+def test_a_fresh_start_over_results_without_last_pt_is_refused(tiny_data, tmp_path, resume):
+    """A run killed before its first checkpoint leaves best.pt and log.jsonl but no
+    last.pt: starting again there (``--resume auto`` finds nothing to resume) would
+    overwrite them, so it is refused; files left untouched."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "best.pt").write_bytes(b"weights of the earlier run")
+    (out / "log.jsonl").write_text('{"step": 30}\n')
+    with pytest.raises(SpikeSimValueError, match=r"holds best.pt and log.jsonl but no last.pt "
+                                                 r"to resume from"):
+        train(_cfg(tiny_data[0], out, resume=resume))
+    assert (out / "best.pt").read_bytes() == b"weights of the earlier run"
+    assert sorted(p.name for p in out.iterdir()) == ["best.pt", "log.jsonl"]
+    (out / "best.pt").unlink()
+    (out / "log.jsonl").write_text("")  # an empty log holds nothing to lose
+    train(_cfg(tiny_data[0], out, resume=resume, steps=2))
+    assert (out / "last.pt").exists()
