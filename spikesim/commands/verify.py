@@ -65,13 +65,16 @@ def summary_line(counts: dict) -> str:
 
 
 def nothing_to_verify(path: Path) -> str | None:
-    """Why ``path`` holds nothing to verify (it does not exist, or is a folder with no
-    ``.h5``, ``.hdf5`` or ``.dat`` file, nor a writer's temporary, at any depth); None
-    when it holds something."""
+    """Why ``path`` holds nothing to verify (it does not exist, is a file of another kind,
+    or is a folder with no ``.h5``, ``.hdf5`` or ``.dat`` file, nor a writer's temporary,
+    at any depth); None when it holds something."""
     from spikesim.io.atomic import is_temp_name
 
     if not path.exists():
         return f"no such file or folder: {str(path)!r}: check the path"
+    if path.is_file() and path.suffix.lower() not in SUFFIXES and not is_temp_name(path):
+        return (f"{str(path)!r} is not a spike file (.h5, .hdf5 or .dat): give a spike file "
+                "or a folder holding some")
     if path.is_dir() and not any((p.suffix.lower() in SUFFIXES or is_temp_name(p)) and p.is_file()
                                  for p in path.rglob("*")):
         return (f"no .h5, .hdf5 or .dat file found in the folder {str(path)!r} (nor in its "

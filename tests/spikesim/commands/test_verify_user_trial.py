@@ -113,7 +113,8 @@ def test_nothing_to_verify_is_a_usage_error_not_damage(tmp_path, capsys, flags):
     (tmp_path / "notes" / "sub" / "readme.txt").write_text("no spikes here")
     for path, words in ((tmp_path / "empty", "no .h5, .hdf5 or .dat file found in the folder"),
                         (tmp_path / "notes", "no .h5, .hdf5 or .dat file found in the folder"),
-                        (tmp_path / "missing", "no such file or folder")):
+                        (tmp_path / "missing", "no such file or folder"),
+                        (tmp_path / "notes" / "sub" / "readme.txt", "is not a spike file")):
         assert main(["verify", str(path), *flags]) == EXIT_NOTHING == 2
         cap = capsys.readouterr()
         assert cap.out == "" and len(cap.err.strip().splitlines()) == 1, cap
