@@ -296,7 +296,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
             pending.append(t)
     t0 = time.perf_counter()
     bar = tqdm(total=len(pending), desc=f"dataset {manifest.name}", unit="seq",
-               disable=not progress)
+               disable=not progress or not pending)
 
     def on_result(rec):
         summary.records.append(rec)
@@ -334,7 +334,8 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         # stopped (SIGTERM, Ctrl-C) or a scheduler error: record what was done,
         # the files workers finished but had not reported yet included, and index it
         summary.seconds = time.perf_counter() - t0
-        summary.executor += " (interrupted)"
+        stopped = " (stopped by an error)" if isinstance(exc, Exception) else " (interrupted)"
+        summary.executor += stopped
         with contextlib.suppress(Exception):
             _record_finished(pending, out, summary)
             for split in splits:

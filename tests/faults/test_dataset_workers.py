@@ -88,7 +88,7 @@ def test_dask_build_whose_workers_all_died_ends_with_an_error(tmp_path, monkeypa
     assert "\n" not in str(err)
     summary = json.loads((out / "build_summary.json").read_text())
     assert summary["executor"].startswith("dask scheduler tcp://")
-    assert summary["executor"].endswith("(interrupted)") and summary["done"] == 0
+    assert summary["executor"].endswith("(stopped by an error)") and summary["done"] == 0
 
 
 SCRIPT = textwrap.dedent(

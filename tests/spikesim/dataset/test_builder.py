@@ -173,11 +173,14 @@ def test_build_whose_every_sequence_fails_raises(tmp_path, factory_module, capsy
     assert cap.out.count("injected failure") >= 2
 
 
-def test_nothing_to_build_says_so(tmp_path):
+def test_nothing_to_build_says_so(tmp_path, capsys):
     """A re-run that finds every sequence made starts no executor and says so (it said
-    "serial" whatever --workers asked for)."""
+    "serial" whatever --workers asked for), drawing no empty progress bar."""
     m = parse_manifest(small_manifest(count=2))
     build_dataset(m, tmp_path / "ds", progress=False)
+    capsys.readouterr()
+    assert build_dataset(m, tmp_path / "ds", progress=True).executor == "nothing to build"
+    assert "seq" not in capsys.readouterr().err
     for kw in ({"workers": 2}, {"dask_local": 2}, {}):
         again = build_dataset(m, tmp_path / "ds", progress=False, **kw)
         assert (again.done, again.skipped, again.failed) == (0, 2, 0)
