@@ -14,7 +14,8 @@ def sequence_labels(meta: dict) -> dict:
     """``{"noise": ..., "motion": ...}`` of a sequence, read from its metadata.
 
     Noise: the dataset builder's label when there is one, else ``none``,
-    ``GN<σ_g>``, ``GPN`` or ``physical`` from the sensor's noise model.
+    ``GN<σ_g>``, ``GPN`` or ``physical`` from the sensor's noise model, and
+    ``unknown`` for a capture (no sensor recorded: a converted ``.dat``).
     Motion: the scene's motion (``pan``, ``zoom``, ...), ``object`` for
     procedural scenes with built-in object motion, ``static``, or ``video``.
     """
@@ -22,7 +23,9 @@ def sequence_labels(meta: dict) -> dict:
     noise = (meta.get("sensor") or {}).get("noise") or None
     label = dataset.get("noise_label")
     if not label:
-        if not noise:
+        if "sensor" not in meta:  # a capture (converted), not a simulation: noise unknown
+            label = "unknown"
+        elif not noise:
             label = "none"
         elif noise.get("type") == "paper":
             sg, sp = float(noise.get("sigma_g", 0.0)), float(noise.get("sigma_p", 0.0))

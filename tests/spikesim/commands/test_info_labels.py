@@ -39,3 +39,12 @@ def test_info_shows_the_noise_label_evaluate_groups_by(tmp_path, capsys, make_st
     assert f"  labels     noise {label}, motion zoom (the groups of spikejdd evaluate)" in out
     assert main(["info", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["labels"] == frame.group
+
+
+def test_a_converted_capture_has_unknown_noise_not_none():
+    """A converted .dat records no sensor: its noise is unknown, not the noise-free label."""
+    from spikesim.io import sequence_labels
+
+    capture = {"source": "dat", "converted_from": {"path": "cap.dat"}}
+    assert sequence_labels(capture) == {"noise": "unknown", "motion": "unknown"}
+    assert sequence_labels({"sensor": {"noise": None}})["noise"] == "none"
