@@ -327,9 +327,10 @@ def _train(args) -> int:
     return 0
 
 
-def _centers(text: str | None, default: list[int]) -> list[int]:
+def _centers(text: str | None, default: list[int], n: int) -> list[int]:
     """``--centers``: readouts and ``start:stop[:step]`` ranges, comma-separated
-    (``30,100:180:40``), in order, each once."""
+    (``30,100:180:40``), in order, each once, each a readout of the ``n`` in the
+    stream (checked here, before any work and any progress bar)."""
     if not text:
         return default
     centers: list[int] = []
@@ -349,6 +350,12 @@ def _centers(text: str | None, default: list[int]) -> list[int]:
     if not centers:
         raise bad_value("--centers", text, "at least one readout (start:stop:step with start < "
                                             "stop, or a list such as 19,59)")
+    outside = [c for c in centers if not 0 <= c < n]
+    if outside:
+        shown = outside[0] if text.strip() == str(outside[0]) else text
+        raise bad_value("--centers", shown,
+                        f"readouts in [0, {n - 1}] (the stream has {n} readouts"
+                        + (f"; {outside[0]} is outside)" if shown != outside[0] else ")"))
     return centers
 
 
@@ -415,14 +422,21 @@ def _reconstruct_into(args, written: list, used: dict) -> None:
         from spikejdd.capture import centred_window
         from spikesim.io import open_dat
 
-        cap = open_dat(src, args.height, args.width, flip=not args.no_flip,
-                       head_columns=args.head_columns, partial=args.partial, cfa=args.cfa)
+        if (args.height is None) != (args.width is None):
+            raise SpikeSimValueError("give both --height and --width (the .dat frame size), "
+                                     "or neither to have it guessed")
+        try:
+            cap = open_dat(src, args.height, args.width, flip=not args.no_flip,
+                           head_columns=args.head_columns, partial=args.partial, cfa=args.cfa)
+        except SpikeSimValueError as exc:
+            raise as_option(exc, {"head_columns": "--head-columns", "height": "--height",
+                                  "width": "--width", "cfa": "--cfa"}) from None
         if args.cfa is None:
             print(f"spikejdd reconstruct: note: {src.name} records no colour filter: read as "
                   "monochrome (--cfa RGGB, or the sensor's pattern, for a Bayer capture)",
                   file=sys.stderr)
         n, cfa, rate = cap.n_readouts, cap.cfa, args.rate or 0.6
-        centers = _centers(args.centers, [n // 2])
+        centers = _centers(args.centers, [n // 2], n)
 
         def window(c, length):
             return centred_window(cap, c, length)[0]
@@ -447,7 +461,7 @@ def _reconstruct_into(args, written: list, used: dict) -> None:
                             "record none)")
         cfa = seq.cfa
         rate = args.rate or float((seq.meta.get("sensor") or {}).get("full_scale_rate", 0.6))
-        centers = _centers(args.centers, [int(g) for g in seq.gt_index] or [n // 2])
+        centers = _centers(args.centers, [int(g) for g in seq.gt_index] or [n // 2], n)
 
         def window(c, length):
             start, _ = window_bounds(n, c, length)
@@ -566,7 +580,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     args.argv = argv  # recorded in reports as the command that made them
     args.debug = debug
-    label = f"spikejdd {args.command}" if args.command else "spikejdd"
+    label = parser.command_parser(args).prog  # "spikejdd reconstruct", or "spikejdd"
     return run_guarded(label, lambda: _dispatch(parser, args), debug=debug)
 
 

@@ -14,6 +14,7 @@ import sys
 
 from spikesim._version import __version__
 from spikesim.cli_guard import OneLineParser, check_cli_numbers, debug_requested, run_guarded
+from spikesim.errors import SpikeSimValueError
 
 #: Modules under spikesim.commands, in the order their commands are listed.
 COMMAND_MODULES = (
@@ -64,11 +65,22 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_USAGE
+    # errors are prefixed with the command's full name, as argparse's own
+    # (``spikesim analyze calibrate``, not ``spikesim analyze``)
+    label = parser.command_parser(args).prog
+
     def call():
-        check_cli_numbers(args)
+        try:
+            check_cli_numbers(args)
+        except SpikeSimValueError as exc:
+            status = getattr(args, "usage_status", None)  # verify: 1 would say "damaged"
+            if status is None or debug:
+                raise
+            print(f"{label}: error: {exc}", file=sys.stderr)
+            return status
         return args.func(args)
 
-    return run_guarded(f"spikesim {args.command}", call, debug=debug)
+    return run_guarded(label, call, debug=debug)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,6 +7,7 @@ stderr and an exit code, never a traceback unless asked for with ``--debug``
 ==========================================  =====  ===========================================
 what happened                               exit   line
 ==========================================  =====  ===========================================
+a usage error (argparse's: unknown option)  2      ``PROG COMMAND: error: MESSAGE (see ... --help)``
 a spikesim error (bad value, file, format)  1      ``PROG COMMAND: error: MESSAGE``
 an operating-system error (disk, access)    1      the file, the reason and what to do
 not enough memory                           1      what to make smaller
@@ -45,6 +46,8 @@ EXIT_ERROR = 1
 _NO_MEMORY = "error: not enough memory for this request: ask for fewer readouts or a smaller size"
 #: A value that argparse would take for an option: ``-`` then a digit or a dot.
 _DASHED_VALUE = re.compile(r"-[0-9.]")
+#: argparse's ``argument --size: `` before a message that starts with the option itself.
+_NAMED_TWICE = re.compile(r"^argument (\S+): (?=\1[= ])")
 EXIT_BUG = 70
 EXIT_INTERRUPTED = 130
 EXIT_PIPE = 141
@@ -56,7 +59,32 @@ class OneLineParser(argparse.ArgumentParser):
     instead of printing the whole usage block."""
 
     def error(self, message: str):
+        message = _NAMED_TWICE.sub("", message)  # a converter's message names its option
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_args(self, args=None, namespace=None):
+        """Parse as argparse does, but arguments left over are reported by the
+        (sub)command parser that was chosen (``spikesim verify: error: unrecognized
+        arguments: ... (see spikesim verify --help)``), whose options they were
+        taken for, not by the top-level parser."""
+        namespace, extras = self.parse_known_args(args, namespace)
+        if extras:
+            self.command_parser(namespace).error(
+                "unrecognized arguments: " + " ".join(extras))
+        return namespace
+
+    def command_parser(self, namespace) -> argparse.ArgumentParser:
+        """The innermost subcommand parser that ``namespace`` names (``spikesim analyze
+        calibrate``'s for ``spikesim analyze calibrate ...``); this parser without one.
+        Its ``prog`` is the command's name, as its own errors print it."""
+        parser = self
+        while True:
+            action = next((a for a in parser._actions
+                           if isinstance(a, argparse._SubParsersAction)), None)
+            chosen = None if action is None else getattr(namespace, action.dest, None)
+            if not isinstance(chosen, str) or chosen not in action.choices:
+                return parser
+            parser = action.choices[chosen]
 
     def parse_known_args(self, args=None, namespace=None):
         """Parse as argparse does, after joining an option and a value that starts

@@ -46,7 +46,7 @@ from spikesim.analysis.capture import as_capture, pixel_counts, pixel_intervals
 from spikesim.analysis.masks import check_regions, flat_names
 from spikesim.analysis.regions import describe_region, find_regions, motion_score
 from spikesim.analysis.report import AnalysisResult
-from spikesim.errors import bad_value
+from spikesim.errors import SpikeSimValueError, bad_value
 
 __all__ = ["calibrate", "CalibrationResult", "CalibrationConfig", "fit_parameters",
            "MIN_READOUTS", "DEFAULT_MISMATCH_SPLIT", "SATURATED_RATE"]
@@ -99,11 +99,11 @@ def _regions(cap, rate, n, dark_mask, flat_masks, cfg, progress, notes):
     found = _detect(rate, n, cfg, first, second, notes)
     flats = _bright_enough(found.flats, rate, n, notes)
     if not flats:
-        raise bad_value("capture", "no flat region found",
-                        f"a capture with a uniform, static region of >= {cfg.min_pixels} pixels "
-                        f"and >= {MIN_FLAT_SPIKES} spikes per pixel below saturation (the gain "
-                        "cannot be fitted without one; a longer capture helps), or flat_masks"
-                        f"{_left_out(found)}")
+        raise SpikeSimValueError(
+            "no flat region found in the capture: the gain cannot be fitted without a "
+            f"uniform, static region of >= {cfg.min_pixels} pixels and >= {MIN_FLAT_SPIKES} "
+            "spikes per pixel below saturation (a longer capture helps), or regions given as "
+            f"flat_masks{_left_out(found)}")
     return found.dark, flats, True
 
 

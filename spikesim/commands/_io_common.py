@@ -6,7 +6,8 @@ import argparse
 
 from spikesim.io.source import open_source
 
-__all__ = ["add_source_options", "source_from_args", "parse_crop"]
+__all__ = ["add_source_options", "command_label", "parse_crop", "resolve_path",
+           "source_from_args"]
 
 
 def add_source_options(parser: argparse.ArgumentParser) -> None:
@@ -41,22 +42,61 @@ def source_from_args(args: argparse.Namespace, path):
     import sys
     import warnings
 
+    from spikesim.cli_guard import as_option
+    from spikesim.errors import SpikeSimValueError
     from spikesim.io.dat import RAW_HEAD_COLUMNS
-    from spikesim.io.index import resolve_dataset
     from spikesim.io.source import is_dat
 
-    if not is_dat(path):
-        path = resolve_dataset(path, getattr(args, "split", None))
+    if is_dat(path) and (args.height is None) != (args.width is None):
+        raise SpikeSimValueError(SIZE_PAIR)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        src = open_source(
-            path, sequence=_sequence_key(args.sequence), height=args.height, width=args.width,
-            flip=args.flip, head_columns=RAW_HEAD_COLUMNS if args.drop_head else 0,
-            cfa=args.cfa, clock_hz=args.clock_hz, partial=args.partial,
-        )
+        try:
+            if not is_dat(path):
+                path = resolve_path(path, getattr(args, "split", None))
+            src = open_source(
+                path, sequence=_sequence_key(args.sequence), height=args.height,
+                width=args.width, flip=args.flip,
+                head_columns=RAW_HEAD_COLUMNS if args.drop_head else 0, cfa=args.cfa,
+                clock_hz=args.clock_hz, partial=args.partial,
+            )
+        except SpikeSimValueError as exc:  # name the options, not the reader's parameters
+            named = as_option(exc, OPTION_NAMES)
+            if named is exc and str(exc).startswith("head_columns="):
+                named = type(exc)(f"--drop-head: {exc}")
+            raise named from None
     for w in caught:
-        print(f"spikesim {args.command}: note: {w.message}", file=sys.stderr)
+        print(f"{command_label(args)}: note: {w.message}", file=sys.stderr)
     return src
+
+
+#: The error of a ``.dat`` frame size given half (``--height`` without ``--width``), as
+#: ``spikesim verify`` says it.
+SIZE_PAIR = ("give both --height and --width (the .dat frame size), or neither to have it "
+             "guessed")
+
+#: The reader's parameters (as its errors name them) -> the options of add_source_options.
+OPTION_NAMES = {"sequence": "--sequence", "split": "--split", "cfa": "--cfa",
+                "clock_hz": "--clock-hz", "height": "--height", "width": "--width",
+                "partial": "--partial"}
+
+
+def resolve_path(path, split):
+    """:func:`spikesim.io.index.resolve_dataset`, its errors naming ``--split``."""
+    from spikesim.cli_guard import as_option
+    from spikesim.errors import SpikeSimValueError
+    from spikesim.io.index import resolve_dataset
+
+    try:
+        return resolve_dataset(path, split)
+    except SpikeSimValueError as exc:
+        raise as_option(exc, {"split": "--split"}) from None
+
+
+def command_label(args: argparse.Namespace) -> str:
+    """``spikesim info``, or ``spikesim analyze calibrate`` for a study of analyze."""
+    study = getattr(args, "study", None)
+    return f"spikesim {args.command}" + (f" {study}" if study else "")
 
 
 def parse_crop(text: str | None):

@@ -9,9 +9,10 @@ moving captures: calibrated against default re-simulation).  The work is done by
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
-from spikesim.errors import SpikeSimFileError, bad_value
+from spikesim.errors import SpikeSimFileError, SpikeSimValueError, bad_value
 
 __all__ = ["register"]
 
@@ -224,23 +225,62 @@ def _load_npy(path: str | None, name: str):
                         "label image)") from None
 
 
+#: calibrate()'s parameters and CalibrationConfig's fields -> calibrate's options.
+_CALIBRATE_OPTIONS = {
+    "dark_mask": "--dark-mask", "flat_masks": "--flat-masks", "flat_levels": "--levels",
+    "electrons_per_threshold": "--electrons", "temporal_threshold_noise": "--sigma-t",
+    "mismatch_split": "--mismatch-split", "full_scale_rate": "--full-scale-rate",
+    "max_readouts": "--max-readouts", "check_seed": "--seed"}
+_PARAMETER = re.compile(r"(?<![\w.-])(" + "|".join(_CALIBRATE_OPTIONS) + r")\b")
+#: calibrate's error for a dark mask with no flat region detected outside it, renamed.
+_NO_FLAT_OUTSIDE = "--flat-masks=None is invalid: expected flat masks: none was given and "
+
+
+def _calibrate_error(exc):
+    """A calibrate error naming the command line's options (``--flat-masks``,
+    ``--sigma-t``) where the library names its parameters (``flat_masks``,
+    ``temporal_threshold_noise``)."""
+    text = _PARAMETER.sub(lambda m: _CALIBRATE_OPTIONS[m.group(1)], str(exc))
+    text = re.sub(r"^(--[a-z-]+)\.shape=", r"\1 of shape ", text)  # --dark-mask of shape (4, 4)
+    if text.startswith(_NO_FLAT_OUTSIDE):  # "no flat region found outside --dark-mask (...)"
+        text = (text[len(_NO_FLAT_OUTSIDE):].replace(" was found", " found", 1)
+                + ": give --flat-masks to name the flat regions")
+    elif overlap := re.match(r"masks='(.*)' is invalid: expected (.*)", text):
+        text = (f"the regions of --dark-mask and --flat-masks overlap ({overlap[1]}): "
+                f"expected {overlap[2]}")
+    elif option := re.match(r"(--[a-z-]+)=", text):  # None: the option left out
+        text = text.removesuffix(", or None").replace("expected None",
+                                                      f"expected no {option[1]}")
+    return type(exc)(text)
+
+
 def _run_calibrate(args) -> int:
     from spikesim.analysis.calibrate import DEFAULT_MISMATCH_SPLIT, calibrate
     from spikesim.analysis.report import write_report
     from spikesim.commands._io_common import source_from_args
+    from spikesim.errors import SpikeSimError
 
+    if not args.detect and args.dark_mask is None and args.flat_masks is None:
+        raise SpikeSimValueError("--no-detect needs --flat-masks (and --dark-mask) to give "
+                                 "the regions, or leave --no-detect out to have them detected")
     src = source_from_args(args, args.capture)
-    res = calibrate(
-        src, dark_mask=_load_npy(args.dark_mask, "--dark-mask"),
-        flat_masks=_load_npy(args.flat_masks, "--flat-masks"),
-        flat_levels=_floats(args.levels, "--levels"), detect=args.detect,
-        electrons_per_threshold=args.electrons, temporal_threshold_noise=args.sigma_t,
-        mismatch_split=DEFAULT_MISMATCH_SPLIT if args.mismatch_split is None
-        else args.mismatch_split, full_scale_rate=args.full_scale_rate,
-        fit_charge_noise=args.charge_noise, max_readouts=args.max_readouts, check=args.check,
-        check_seed=args.seed, reset=args.reset, progress=args.progress,
-        option_names={"flat_levels": "--levels", "reset": "--reset",
-                      "full_scale_rate": "--full-scale-rate"})
+    try:
+        res = calibrate(
+            src, dark_mask=_load_npy(args.dark_mask, "--dark-mask"),
+            flat_masks=_load_npy(args.flat_masks, "--flat-masks"),
+            flat_levels=_floats(args.levels, "--levels"), detect=args.detect,
+            electrons_per_threshold=args.electrons, temporal_threshold_noise=args.sigma_t,
+            mismatch_split=DEFAULT_MISMATCH_SPLIT if args.mismatch_split is None
+            else args.mismatch_split, full_scale_rate=args.full_scale_rate,
+            fit_charge_noise=args.charge_noise, max_readouts=args.max_readouts,
+            check=args.check, check_seed=args.seed, reset=args.reset, progress=args.progress,
+            option_names={"flat_levels": "--levels", "reset": "--reset",
+                          "full_scale_rate": "--full-scale-rate"})
+    except SpikeSimError as exc:  # name the options, not calibrate()'s parameters
+        named = _calibrate_error(exc)
+        if args.max_readouts is not None and str(named).startswith("capture length="):
+            named = type(named)(f"{named} (--max-readouts {args.max_readouts} shortens it)")
+        raise named from None
     paths = write_report(res, args.out)
     sensor_path = Path(args.out) / "sensor.json"
     sensor_path.write_text(res.sensor.to_json() + "\n")

@@ -104,10 +104,10 @@ def convert(src, dst, start: int = 0, length: int | None = None, crop=None,
 
 def run(args) -> int:
     if args.sjdd:
+        from spikesim.commands._io_common import resolve_path
         from spikesim.io.export import export_sjdd
-        from spikesim.io.index import resolve_dataset
 
-        summary = export_sjdd(resolve_dataset(args.src, args.split), args.dst,
+        summary = export_sjdd(resolve_path(args.src, args.split), args.dst,
                               subset=args.subset, noise=args.noise,
                               gt_encoding=args.gt_encoding, progress=not args.quiet,
                               option_names={"noise": "--noise", "subset": "--subset",
@@ -135,6 +135,14 @@ def run(args) -> int:
     except SpikeSimValueError as exc:
         raise as_option(exc, {"compression": "--compression"}) from None
     src = source_from_args(args, args.src)
+    from spikesim._validate import check_crop, check_window
+
+    try:  # the window and crop checked here, to name the options
+        check_window(args.start, args.length, src.n_readouts)
+        check_crop(args.crop, src.height, src.width)
+    except SpikeSimValueError as exc:
+        named = as_option(exc, {"start": "--start", "length": "--length", "crop": "--crop"})
+        raise type(named)(str(named).replace(", start=", ", --start ")) from None
     out = convert(src, args.dst, args.start, args.length, args.crop, out_flip=args.out_flip,
                   compression=args.compression, progress=not args.quiet)
     print(f"wrote {out}")

@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from spikesim.commands._io_common import add_source_options, source_from_args
+from spikesim.commands._io_common import add_source_options, resolve_path, source_from_args
 
 __all__ = ["register", "describe", "run"]
 
@@ -105,11 +105,11 @@ def _text(info: dict) -> str:
 
 def run(args) -> int:
     from spikesim._validate import check_int
-    from spikesim.io.index import open_dataset, resolve_dataset
+    from spikesim.io.index import open_dataset
     from spikesim.io.source import is_dat
 
     check_int("--stats-readouts", args.stats_readouts, 1, unit="readouts")
-    path = args.path if is_dat(args.path) else resolve_dataset(args.path, args.split)
+    path = args.path if is_dat(args.path) else resolve_path(args.path, args.split)
     note = None
     if args.all and not is_dat(args.path):
         sources = list(open_dataset(path))

@@ -10,17 +10,30 @@ from spikesim.errors import SpikeSimError, SpikeSimFileError, SpikeSimValueError
 from spikesim.workload import RunawayWorkWarning
 
 
-def load_sensor(spec: str, overrides: dict):
+def load_sensor(spec: str, overrides: dict, options: dict | None = None):
     """The sensor of a ``--sensor`` option: a preset name, or a sensor ``.json`` file
     (:meth:`spikesim.Sensor.to_json`), with ``--set``/``--size`` overrides applied
     (``cfa=mono`` or ``none``: monochrome; ``noise.FIELD``: a field of the sensor's
-    noise model, e.g. ``noise.electrons_per_threshold``)."""
+    noise model, e.g. ``noise.electrons_per_threshold``).  Errors name the option
+    that gave a value: ``--set FIELD=...``, or ``options[FIELD]`` (``{"height":
+    "--size"}``)."""
     if overrides.get("cfa") in ("mono", "none"):
         overrides = dict(overrides, cfa=None)
     noise_fields = {k.split(".", 1)[1]: v for k, v in overrides.items()
                     if k.startswith("noise.")}
-    sensor = _base_sensor(spec, {k: v for k, v in overrides.items()
-                                 if not k.startswith("noise.")})
+    base = {k: v for k, v in overrides.items() if not k.startswith("noise.")}
+    try:
+        sensor = _base_sensor(spec, base)
+    except SpikeSimError as exc:
+        from spikesim.cli_guard import as_option
+
+        named = name_keys(exc, [k for k in base if k not in (options or {})], "--set")
+        if named is exc:
+            named = as_option(exc, {"preset": "--sensor", "sensor override": "--set",
+                                    **(options or {})})
+        if named is exc and "noise" in base:  # a field inside --set noise={...}
+            named = type(exc)(f"--set noise: {exc}")
+        raise named from None
     if not noise_fields:
         return sensor
     if sensor.noise is None:
@@ -34,6 +47,17 @@ def load_sensor(spec: str, overrides: dict):
 
         named = as_option(exc, {k: f"--set noise.{k}" for k in noise_fields})
         raise (named if named is not exc else type(exc)(f"--set noise.FIELD: {exc}")) from None
+
+
+def name_keys(exc: SpikeSimError, keys, option: str) -> SpikeSimError:
+    """``exc`` with the key its message starts with (``clock_hz=-5 is invalid``,
+    ``noise.type='x' is invalid``) named as the option that gave it (``--set
+    clock_hz=-5 is invalid``); ``exc`` itself when it names none of ``keys``."""
+    text = str(exc)
+    for key in sorted(keys, key=len, reverse=True):
+        if text.startswith((f"{key}=", f"{key}.", f"{key} ")):
+            return type(exc)(f"{option} {text}")
+    return exc
 
 
 def _base_sensor(spec: str, overrides: dict):
@@ -119,7 +143,8 @@ def run(args) -> int:
     if args.size:
         h, w = parse_size(args.size)
         overrides.update(height=h, width=w)
-    sensor = load_sensor(args.sensor, overrides)
+    sensor = load_sensor(args.sensor, overrides,
+                         {"height": "--size", "width": "--size"} if args.size else None)
     out = Path(args.out)
     if out.suffix.lower() not in (".h5", ".hdf5", ".dat"):
         raise bad_value("--out", args.out, "a path ending in .h5, .hdf5 or .dat")
@@ -135,12 +160,19 @@ def run(args) -> int:
         raise SpikeSimFileError(f"SCENE {args.scene!r}: no such video file or frame folder "
                                 "(built-in scene names: spikesim scenes)")
     else:
+        for key, option in (("motion", "--motion"), ("speed", "--speed"), ("size", "--size"),
+                            ("name", "SCENE")):
+            if key in scene_options:  # procedural()'s own arguments, not the scene's options
+                raise bad_value(f"--scene-set {key}", scene_options[key], "a scene's own "
+                                f"option (`spikesim scenes`); give {option} instead")
         try:
             scene = ss.scenes.procedural(args.scene, motion=args.motion, size=sensor.shape,
                                          speed=args.speed, **scene_options)
         except SpikeSimValueError as exc:  # name the command-line option
-            raise as_option(exc, {"options": "--scene-set", "speed": "--speed",
-                                  "motion": "--motion", "name": "SCENE"}) from None
+            named = name_keys(exc, scene_options, "--scene-set")
+            raise (named if named is not exc else
+                   as_option(exc, {"options": "--scene-set", "speed": "--speed",
+                                   "motion": "--motion", "name": "SCENE"})) from None
     packed_bytes = args.readouts * sensor.height * ((sensor.width + 7) // 8)
     if not args.force:
         check_free_space(out, packed_bytes * (2 if args.clean_twin else 1))

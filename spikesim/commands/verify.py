@@ -16,7 +16,8 @@ __all__ = ["EXIT_NOTHING", "EXIT_UNCHECKED", "exit_status", "nothing_to_verify",
 #: unknown frame size).  0: every file checked and ok; 1: something is damaged.
 EXIT_UNCHECKED = 3
 #: Exit status when PATH holds nothing to verify (no such path, or a folder without a
-#: .h5, .hdf5 or .dat file): a usage error, as argparse's, never read as "damaged".
+#: .h5, .hdf5 or .dat file), or an option's value is bad: a usage error, as argparse's,
+#: never read as "damaged".
 EXIT_NOTHING = 2
 #: The file name endings verify checks (``spikesim.io.verify``).
 SUFFIXES = (".h5", ".hdf5", ".dat")
@@ -28,7 +29,8 @@ def register(subparsers) -> None:
         description="Open each .h5 file (or every file under a folder), read all its chunks "
                     "against their checksums and its ground truth for NaN/inf; check .dat "
                     "lengths. Exit status 0 when every file was checked and is ok, 1 when "
-                    "anything is damaged, 2 when PATH does not exist or holds no such file, 3 "
+                    "anything is damaged, 2 when PATH does not exist or holds no such file (or "
+                    "an option is wrong), 3 "
                     "when nothing is damaged but some .dat file could not be checked (its "
                     "frame size is unknown: give --height and --width).",
     )
@@ -36,7 +38,8 @@ def register(subparsers) -> None:
     p.add_argument("--height", type=int, help="frame height of .dat files (else guessed)")
     p.add_argument("--width", type=int, help="frame width of .dat files (else guessed)")
     p.add_argument("--json", action="store_true", help="print the reports as JSON")
-    p.set_defaults(func=run)
+    # a bad option value is a usage error (2), as argparse's, never 1 ("damaged")
+    p.set_defaults(func=run, usage_status=EXIT_NOTHING)
 
 
 def _line(r: dict) -> str:
@@ -91,14 +94,18 @@ def exit_status(counts: dict) -> int:
 
 def run(args) -> int:
     from spikesim._validate import check_int
+    from spikesim.commands._io_common import SIZE_PAIR
     from spikesim.io.verify import summarize, verify
 
-    for flag, value in (("--height", args.height), ("--width", args.width)):
-        if value is not None:
-            check_int(flag, value, 1, unit="pixels")
-    if (args.height is None) != (args.width is None):
-        raise SpikeSimValueError("give both --height and --width (the .dat frame size), or "
-                                 "neither to have it guessed")
+    try:
+        for flag, value in (("--height", args.height), ("--width", args.width)):
+            if value is not None:
+                check_int(flag, value, 1, unit="pixels")
+        if (args.height is None) != (args.width is None):
+            raise SpikeSimValueError(SIZE_PAIR)
+    except SpikeSimValueError as exc:  # a usage error (2), never 1 ("damaged")
+        print(f"spikesim verify: error: {exc}", file=sys.stderr)
+        return EXIT_NOTHING
     why = nothing_to_verify(Path(args.path))
     if why:
         print(f"spikesim verify: error: {why}", file=sys.stderr)

@@ -125,6 +125,50 @@ def test_a_dash_value_is_not_joined_to_a_flag_or_after_the_option_list():
     assert p.parse_args(["--size", "-.5"]).size == "-.5"
 
 
+def _two_level_parser():
+    import argparse
+
+    from spikesim.cli_guard import OneLineParser
+
+    def pair(text):
+        raise argparse.ArgumentTypeError(f"--pair={text!r} is invalid: expected A,B")
+
+    p = OneLineParser(prog="tool")
+    sub = p.add_subparsers(dest="command")
+    group = sub.add_parser("group").add_subparsers(dest="study")
+    leaf = group.add_parser("leaf")
+    leaf.add_argument("--pair", type=pair)
+    sub.add_parser("plain")
+    return p
+
+
+@pytest.mark.parametrize("argv, prog", [
+    (["plain", "--bogus", "1"], "tool plain"),
+    (["group", "leaf", "--bogus", "1"], "tool group leaf"),
+])
+def test_leftover_arguments_are_reported_by_the_chosen_subcommand(argv, prog, capsys):
+    """Leftovers were reported by the top-level parser (``tool: error: unrecognized
+    arguments: ... (see tool --help)``), whose help does not list the subcommand's
+    options they were taken for."""
+    p = _two_level_parser()
+    with pytest.raises(SystemExit) as stop:
+        p.parse_args(argv)
+    assert stop.value.code == 2
+    assert capsys.readouterr().err == (f"{prog}: error: unrecognized arguments: --bogus 1 "
+                                       f"(see {prog} --help)\n")
+    assert p.command_parser(p.parse_args(argv[:-2])).prog == prog
+
+
+def test_a_converters_error_names_its_option_once(capsys):
+    """argparse prefixes a converter's message with ``argument --pair: ``, which named
+    the option twice (``argument --pair: --pair='x' is invalid``)."""
+    with pytest.raises(SystemExit) as stop:
+        _two_level_parser().parse_args(["group", "leaf", "--pair", "x"])
+    assert stop.value.code == 2
+    assert capsys.readouterr().err == ("tool group leaf: error: --pair='x' is invalid: "
+                                       "expected A,B (see tool group leaf --help)\n")
+
+
 def test_a_size_beyond_the_free_memory_is_refused_before_any_work(capsys, tmp_path, monkeypatch):
     """`spikesim simulate --size 30000x30000` names the memory it needs and what is
     free, instead of swapping until the system kills it; `--force` goes on."""

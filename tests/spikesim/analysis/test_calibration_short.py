@@ -111,7 +111,7 @@ def test_a_known_full_scale_rate_places_the_regions(strong, capsys, tmp_path):
     args = ["analyze", "calibrate", str(tmp_path / "cap.dat"), "--height", "48", "--width",
             "128", "--no-check", "--no-progress", "--full-scale-rate", "0.6"]
     assert main(args + ["--levels", "0.1,0.2,0.3", "--out", str(tmp_path / "c0")]) == 1
-    assert "--full-scale-rate=0.6 is invalid: expected None when --levels" in \
+    assert "--full-scale-rate=0.6 is invalid: expected no --full-scale-rate when --levels" in \
         capsys.readouterr().err
     assert main(args + ["--out", str(tmp_path / "c1")]) == 0
     import json

@@ -55,7 +55,7 @@ def test_command_errors_are_one_line_messages(tmp_path, capsys):
     assert main(["simulate", "flat", "--sensor", "nope", "--readouts", "5",
                  "--out", str(tmp_path / "x.h5")]) == 1
     err = capsys.readouterr().err
-    assert "preset" in err and "Traceback" not in err
+    assert "--sensor='nope' is invalid: expected one of" in err and "Traceback" not in err
     assert main(["simulate", "flat", "--readouts", "5", "--out", str(tmp_path / "x.txt")]) == 1
     assert not (tmp_path / "x.txt").exists()
 
