@@ -140,7 +140,8 @@ def _train_parser(sub) -> None:
     tr.add_argument("--channels-last", action="store_true", help="channels_last memory format")
     tr.add_argument("--synthesize", type=int, metavar="N",
                     help="first write N procedural sequences into --data (when it has none)")
-    tr.add_argument("--quiet", action="store_true", help="no progress bar")
+    tr.add_argument("--quiet", action="store_true",
+                    help="no progress bar (a line per validation is still printed)")
 
 
 def _reconstruct_parser(sub) -> None:
@@ -321,7 +322,8 @@ def _train(args) -> int:
     done, first = summary["steps_done"], summary["resumed_at_step"]
     this_call = (f" ({done - first} after resuming at step {first}, "
                  f"{summary['minutes_this_call']:.1f} min)" if first else "")
-    print(f"trained {done} steps in {summary['minutes']:.1f} min{this_call} (and "
+    steps = f"{done} step{'' if done == 1 else 's'}"
+    print(f"trained {steps} in {summary['minutes']:.1f} min{this_call} (and "
           f"{summary['setup_minutes']:.1f} min of set-up); best eval PSNR "
           f"{summary['best_psnr']:.2f} dB; run folder {cfg.get('out', 'runs/sjdd')}")
     return 0

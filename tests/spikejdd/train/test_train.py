@@ -212,6 +212,9 @@ def test_cli_train_and_reconstruct(tiny_data, tmp_path, capsys):
     assert main(["train", "--data", str(root), "--config", str(cfg), "--out", str(out),
                  "--set", "stages=2", "--quiet"]) == 0
     assert "trained 2 steps" in capsys.readouterr().out
+    assert main(["train", "--data", str(root), "--config", str(cfg), "--out",
+                 str(tmp_path / "one"), "--set", "stages=2", "--steps", "1", "--quiet"]) == 0
+    assert "trained 1 step in" in capsys.readouterr().out
     weights = out / "last.pt"
     assert load_model(weights).config.stages == 2
     # reconstruct an HDF5 sequence (its GT readouts) and a .dat capture
