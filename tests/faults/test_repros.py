@@ -214,4 +214,5 @@ def test_verify_checks_dat_lengths_at_the_given_size(tmp_path):
     assert code == 1 and "DAMAGED" in out and "64x64" in out  # truncated, at the size given
     code, _, out = _main("spikesim", ["verify", tmp_path / "a.dat"])  # 64x64 is no known size
     assert code == 3 and "--height" in out  # not checked: not "all verified"
-    _fails("spikesim", ["verify", tmp_path / "a.dat", "--height", 64], "--width")
+    code, err, _ = _main("spikesim", ["verify", tmp_path / "a.dat", "--height", 64])
+    assert code == 2 and "--width" in err  # a usage error: 1 would read as damage

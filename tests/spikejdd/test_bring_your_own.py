@@ -413,11 +413,11 @@ def test_reconstruct_centers_mix_readouts_and_ranges(data39, tmp_path, capsys):
     split's sequences report each method's window once."""
     from spikejdd.cli import _centers
 
-    assert _centers("30,100:180:40,30", []) == [30, 100, 140]
-    assert _centers("5:8", []) == [5, 6, 7]
-    for bad in ("a", "1:2:3:4", "1:9:0"):
+    assert _centers("30,100:180:40,30", [], 200) == [30, 100, 140]
+    assert _centers("5:8", [], 200) == [5, 6, 7]
+    for bad in ("a", "1:2:3:4", "1:9:0", "30,200"):
         with pytest.raises(Exception, match="--centers"):
-            _centers(bad, [])
+            _centers(bad, [], 200)
     out = tmp_path / "f"
     assert main(["reconstruct", str(data39), "--methods", "tfp+bilinear", "--centers",
                  "15,19:24:4", "--out", str(out), "--quiet"]) == 0

@@ -61,7 +61,7 @@ def test_spikejdd_loaders_and_commands_on_a_root(root, tmp_path, capsys):
     assert main(["train", "--data", str(root), "--split", "train", "--eval-split", "eval",
                  "--eval-data", str(root), "--config", str(cfg), "--out",
                  str(tmp_path / "run"), "--quiet"]) == 0
-    assert "trained 1 steps" in capsys.readouterr().out
+    assert "trained 1 step in" in capsys.readouterr().out
     assert main(["train", "--data", str(root), "--config", str(cfg), "--out",
                  str(tmp_path / "run2"), "--quiet"]) == 1
     assert "['eval', 'train']" in capsys.readouterr().err
