@@ -59,10 +59,31 @@ def _watch() -> None:
         os._exit(1)
 
 
+#: Seconds after which a SIGTERM that came during llvmlite's code is tried again.
+RETRY_S = 0.05
+
+
+def _in_llvmlite(frame) -> bool:
+    """Whether ``frame`` or a caller runs llvmlite's code, where numba loads or compiles
+    kernels through ctypes callbacks: an exception raised inside one is not propagated
+    but printed ("Exception ignored on calling ctypes callback function") and lost."""
+    while frame is not None:
+        if "llvmlite" in frame.f_code.co_filename:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _exit_on_sigterm(signum, frame):
     """SIGTERM in a worker: unwind (files being written are removed on the way) and
-    exit quietly; an idle worker's exception would print a traceback."""
-    raise SystemExit(128 + signum)
+    exit quietly with status 143; an idle worker's exception would print a traceback.
+    During llvmlite's code the exit is tried again :data:`RETRY_S` later (SIGALRM), once
+    the callback it may be in has returned."""
+    if _in_llvmlite(frame):
+        signal.signal(signal.SIGALRM, _exit_on_sigterm)
+        signal.setitimer(signal.ITIMER_REAL, RETRY_S)
+        return
+    raise SystemExit(128 + signal.SIGTERM)
 
 
 def init_worker(parent_pid: int, started=None) -> None:

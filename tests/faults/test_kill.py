@@ -228,7 +228,7 @@ def test_a_stop_inside_an_hdf5_write_leaves_no_file_with_zeros(tmp_path, monkeyp
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-@full_only  # (1 failure in 42 repeats, cause not found: kept out of the default suite)
+@full_only  # (a few seconds of builds per case: the full fault suite's)
 @pytest.mark.parametrize("sig, code, words", [("SIGINT", 130, "interrupted"),
                                               ("SIGTERM", 143, "stopped by SIGTERM")])
 def test_a_stop_of_a_workers_build_to_its_group_stops_it_whole(tmp_path, sig, code, words):
@@ -249,7 +249,8 @@ def test_a_stop_of_a_workers_build_to_its_group_stops_it_whole(tmp_path, sig, co
     _, err = proc.communicate(timeout=90)
     assert proc.returncode == code and words in err, err[-2000:]
     assert "Process SpawnProcess" not in err, err[-2000:]  # an idle worker's traceback
-    if sig == "SIGINT":  # (a SIGTERM that lands while a worker loads its kernels can get
-        assert "Traceback" not in err, err[-2000:]  # numba's "Exception ignored" report)
+    # (a worker's SIGTERM that landed in llvmlite's ctypes callback, as numba loaded its
+    # kernels, printed "Exception ignored ... Traceback": 1 run in 42)
+    assert "Traceback" not in err and "Exception ignored" not in err, err[-2000:]
     _wait_for(lambda: not any(alive(k) for k in kids), timeout=30, what="workers to exit")
     assert not no_temps(tmp_path / "ds")
