@@ -67,7 +67,22 @@ def source_from_args(args: argparse.Namespace, path):
             raise named from None
     for w in caught:
         print(f"{command_label(args)}: note: {w.message}", file=sys.stderr)
+    if not is_dat(path):
+        unused = [flag for flag, given in DAT_ONLY.items() if given(args)]
+        if unused:
+            print(f"{command_label(args)}: note: {', '.join(unused)} ignored: they describe a "
+                  ".dat capture, and a spikesim HDF5 file records its own", file=sys.stderr)
     return src
+
+
+#: The options of a ``.dat`` capture only (an HDF5 file records its size, CFA and
+#: clock): flag -> whether it was given.
+DAT_ONLY = {
+    "--height": lambda a: a.height is not None, "--width": lambda a: a.width is not None,
+    "--no-flip": lambda a: not a.flip, "--drop-head": lambda a: a.drop_head,
+    "--partial": lambda a: a.partial != "error", "--cfa": lambda a: a.cfa is not None,
+    "--clock-hz": lambda a: a.clock_hz is not None,
+}
 
 
 #: The error of a ``.dat`` frame size given half (``--height`` without ``--width``), as

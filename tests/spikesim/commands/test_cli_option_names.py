@@ -168,3 +168,20 @@ def test_calibrate_errors_name_its_options(capture, capsys, monkeypatch, name, f
     for parameter in ("flat_masks", "dark_mask", "capture=", "temporal_threshold_noise",
                       "mismatch_split", "full_scale_rate", "or None"):
         assert parameter not in last
+
+
+def test_dat_options_given_for_an_hdf5_file_are_said_to_be_ignored(tmp_path, capsys):
+    """--height, --cfa and the other .dat options were ignored silently for an HDF5 file."""
+    import spikesim as ss
+    from spikesim.cli import main
+
+    sensor = ss.Sensor(height=8, width=8, cfa="RGGB")
+    stream = ss.simulate(ss.scenes.procedural("flat", size=(8, 8)), sensor, n_readouts=3)
+    ss.io.write_h5(tmp_path / "a.h5", stream)
+    assert main(["info", str(tmp_path / "a.h5")]) == 0
+    assert "ignored" not in capsys.readouterr().err
+    assert main(["info", str(tmp_path / "a.h5"), "--height", "8", "--cfa", "GRBG",
+                 "--no-flip"]) == 0
+    assert capsys.readouterr().err == (
+        "spikesim info: note: --height, --no-flip, --cfa ignored: they describe a .dat "
+        "capture, and a spikesim HDF5 file records its own\n")
