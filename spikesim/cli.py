@@ -72,13 +72,13 @@ def main(argv: list[str] | None = None) -> int:
     def call():
         try:
             check_cli_numbers(args)
+            return args.func(args)
         except SpikeSimValueError as exc:
             status = getattr(args, "usage_status", None)  # verify: 1 would say "damaged"
             if status is None or debug:
                 raise
             print(f"{label}: error: {exc}", file=sys.stderr)
             return status
-        return args.func(args)
 
     return run_guarded(label, call, debug=debug)
 

@@ -18,6 +18,7 @@ has gone (other systems, or a SIGTERM that a handler held up).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
@@ -37,10 +38,8 @@ def _death_signal(sig: int) -> None:
         return
     import ctypes
 
-    try:
+    with contextlib.suppress(OSError, AttributeError):  # no prctl: the watch thread remains
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
-    except (OSError, AttributeError):  # no prctl: the watch thread remains
-        pass
 
 
 def _watch(parent_pid: int) -> None:

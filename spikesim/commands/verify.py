@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 from spikesim.errors import SpikeSimValueError
+from spikesim.io.verify import SPIKE_SUFFIXES
 
 __all__ = ["EXIT_NOTHING", "EXIT_UNCHECKED", "exit_status", "nothing_to_verify", "register",
            "run", "summary_line"]
@@ -19,8 +19,7 @@ EXIT_UNCHECKED = 3
 #: .h5, .hdf5 or .dat file), or an option's value is bad: a usage error, as argparse's,
 #: never read as "damaged".
 EXIT_NOTHING = 2
-#: The file name endings verify checks (``spikesim.io.verify``).
-SUFFIXES = (".h5", ".hdf5", ".dat")
+
 
 
 def register(subparsers) -> None:
@@ -75,11 +74,13 @@ def nothing_to_verify(path: Path) -> str | None:
 
     if not path.exists():
         return f"no such file or folder: {str(path)!r}: check the path"
-    if path.is_file() and path.suffix.lower() not in SUFFIXES and not is_temp_name(path):
+    if path.is_file() and path.suffix.lower() not in SPIKE_SUFFIXES and not is_temp_name(path):
         return (f"{str(path)!r} is not a spike file (.h5, .hdf5 or .dat): give a spike file "
                 "or a folder holding some")
-    if path.is_dir() and not any((p.suffix.lower() in SUFFIXES or is_temp_name(p)) and p.is_file()
-                                 for p in path.rglob("*")):
+    def spike_or_temp(p: Path) -> bool:
+        return (p.suffix.lower() in SPIKE_SUFFIXES or is_temp_name(p)) and p.is_file()
+
+    if path.is_dir() and not any(spike_or_temp(p) for p in path.rglob("*")):
         return (f"no .h5, .hdf5 or .dat file found in the folder {str(path)!r} (nor in its "
                 "subfolders): give a spike file or a folder holding some")
     return None
@@ -97,19 +98,15 @@ def run(args) -> int:
     from spikesim.commands._io_common import SIZE_PAIR
     from spikesim.io.verify import summarize, verify
 
-    try:
-        for flag, value in (("--height", args.height), ("--width", args.width)):
-            if value is not None:
-                check_int(flag, value, 1, unit="pixels")
-        if (args.height is None) != (args.width is None):
-            raise SpikeSimValueError(SIZE_PAIR)
-    except SpikeSimValueError as exc:  # a usage error (2), never 1 ("damaged")
-        print(f"spikesim verify: error: {exc}", file=sys.stderr)
-        return EXIT_NOTHING
+    # value errors are usage errors here (usage_status: exit 2, never 1, "damaged")
+    for flag, value in (("--height", args.height), ("--width", args.width)):
+        if value is not None:
+            check_int(flag, value, 1, unit="pixels")
+    if (args.height is None) != (args.width is None):
+        raise SpikeSimValueError(SIZE_PAIR)
     why = nothing_to_verify(Path(args.path))
     if why:
-        print(f"spikesim verify: error: {why}", file=sys.stderr)
-        return EXIT_NOTHING
+        raise SpikeSimValueError(why)
     reports = verify(args.path, args.height, args.width)
     counts = summarize(reports)
     if args.json:

@@ -23,7 +23,10 @@ from pathlib import Path
 
 from spikesim.errors import SpikeSimError, SpikeSimFileError, SpikeSimFormatError
 
-__all__ = ["dataset_advice", "summarize", "verify", "verify_file"]
+__all__ = ["SPIKE_SUFFIXES", "dataset_advice", "summarize", "verify", "verify_file"]
+
+#: The file name endings of spike files, which a folder's verification checks.
+SPIKE_SUFFIXES = (".h5", ".hdf5", ".dat")
 
 #: Readouts read at a time.
 BLOCK_READOUTS = 512
@@ -181,7 +184,7 @@ def verify(path: str | os.PathLike, height: int | None = None,
                                        "(removed by the next write into this folder)")
                                | {"status": "temp"})
             continue
-        if p.suffix.lower() in (".h5", ".hdf5", ".dat"):
+        if p.suffix.lower() in SPIKE_SUFFIXES:
             reports.append(verify_file(p, height, width))
     if not reports:
         raise SpikeSimFileError(f"{str(path)!r} holds no .h5, .hdf5 or .dat file")
