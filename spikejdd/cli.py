@@ -423,10 +423,10 @@ def _reconstruct_into(args, written: list, used: dict) -> None:
     if src.suffix.lower() == ".dat":
         from spikejdd.capture import centred_window
         from spikesim.io import open_dat
+        from spikesim.io.dat import HALF_SIZE
 
         if (args.height is None) != (args.width is None):
-            raise SpikeSimValueError("give both --height and --width (the .dat frame size), "
-                                     "or neither to have it guessed")
+            raise SpikeSimValueError(HALF_SIZE)
         try:
             cap = open_dat(src, args.height, args.width, flip=not args.no_flip,
                            head_columns=args.head_columns, partial=args.partial, cfa=args.cfa)

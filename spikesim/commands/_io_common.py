@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from spikesim.io.dat import HALF_SIZE as SIZE_PAIR
 from spikesim.io.source import open_source
 
 __all__ = ["add_source_options", "command_label", "parse_crop", "resolve_path",
@@ -85,10 +86,6 @@ DAT_ONLY = {
 }
 
 
-#: The error of a ``.dat`` frame size given half (``--height`` without ``--width``), as
-#: ``spikesim verify`` says it.
-SIZE_PAIR = ("give both --height and --width (the .dat frame size), or neither to have it "
-             "guessed")
 
 #: The reader's parameters (as its errors name them) -> the options of add_source_options.
 OPTION_NAMES = {"sequence": "--sequence", "split": "--split", "cfa": "--cfa",

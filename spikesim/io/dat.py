@@ -45,6 +45,7 @@ from spikesim.io._runs import contiguous_chunks
 from spikesim.io.atomic import atomic_path, lock_temp
 
 __all__ = [
+    "HALF_SIZE",
     "KNOWN_SENSOR_SIZES",
     "RAW_HEAD_COLUMNS",
     "DatFile",
@@ -71,6 +72,11 @@ KNOWN_SENSOR_SIZES: tuple[tuple[int, int, str], ...] = (
     (500, 800, "PKU 800x500 spike camera"),
     (256, 448, "256x448 synthetic sets (e.g. X4K/GoPro-derived spike data)"),
 )
+
+
+#: The command lines' error for a ``.dat`` frame size given half (``--height`` without
+#: ``--width``).
+HALF_SIZE = "give both --height and --width (the .dat frame size), or neither to have it guessed"
 
 
 def dat_frame_bytes(height: int, width: int) -> int:
