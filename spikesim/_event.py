@@ -41,12 +41,16 @@ loss at reset (``reset_charge_loss`` f): the readout after a firing
 contributes ``(1 − f)·λ_n`` (binomial thinning of a Poisson count is
 Poisson).
 
-Work per readout is one multiply-add, two compares and a select per pixel
-(vectorised over the 64 lanes); the random draws happen per spike.  A draw
-depends only on the pixel's state and keys, not on when it fires, so each lane
-caches its next cycle's draw (:func:`prepare_fast`: three hashes, two normals,
-the first Marsaglia–Tsang candidate, drawn for 8 lanes per vector step, ahead
-of the firing), and the readout loop
+Runs of constant radiance (:func:`event_direct`) are walked lane by lane from
+firing to firing: the readout of the next crossing is ``⌈wait/λ⌉`` readouts
+on, found exactly (see :func:`crossing`, and :data:`CHARGE_GRID` for why
+this equals the per-readout subtraction bit for bit), so there is no work per
+readout at all.  Elsewhere the work per readout is one multiply-add, two
+compares and a select per pixel (vectorised over the 64 lanes), and the random
+draws happen per spike: a draw depends only on the pixel's state and keys, not
+on when it fires, so each lane caches its next cycle's draw
+(:func:`lane_draw`: three hashes, two normals, the first Marsaglia–Tsang
+candidate, ahead of the firing), and the readout loop
 (:func:`spikesim._simd.event_cached_run64`) takes a firing from the cache in
 registers; :func:`event_settle` handles the firings it cannot take, and
 :func:`fire_cycle`, the scalar definition, what the cache cannot hold.
@@ -62,8 +66,6 @@ from spikesim._simd import (
     advance_cycles64,
     high_bits_at_least64,
     lowest_bit_index,
-    masked_move64,
-    popcount,
     prefer_wide_vectors,
 )
 from spikesim.rng import (
@@ -243,7 +245,7 @@ def drop_free_limit(h0):
     return limit if (h0 >= 1.0) & (h0 <= _LIMIT_MAX_H0) else -np.inf
 
 
-#: Shapes below this are read from :data:`SHAPE_TABLES` by :func:`prepare_fast`
+#: Shapes below this are read from :data:`SHAPE_TABLES` by :func:`lane_draw`
 #: (every shape of a pixel with up to 21 800 electrons per threshold, the jitter
 #: clipped at +½; larger ones are drawn lane by lane by :func:`prepare_lane`:
 #: measured 2.7× slower at 40 000 e⁻).
@@ -251,7 +253,7 @@ TABLE_SHAPES = 1 << 15
 
 
 def shape_tables(n: int = TABLE_SHAPES) -> np.ndarray:
-    """(2, n) float64 tables by integer shape ``h`` that :func:`prepare_fast`
+    """(2, n) float64 tables by integer shape ``h`` that :func:`lane_draw`
     reads instead of two square roots and a division per spike: row 0
     Marsaglia–Tsang's ``c = 1/√(9(h − ⅓))`` (0 for ``h`` ≤ :data:`SMALL_SHAPE`;
     the floating-point operations of :func:`gamma_integer`), row 1
@@ -267,7 +269,7 @@ def shape_tables(n: int = TABLE_SHAPES) -> np.ndarray:
 
 
 #: The tables, a compile-time constant of the kernel (so LLVM knows no store
-#: aliases them, and :func:`prepare_fast`'s loop vectorises with their gathers).
+#: aliases them, and :func:`first_waits`' loop vectorises with their gathers).
 SHAPE_TABLES = shape_tables()
 _C_OF = SHAPE_TABLES[0].copy()
 _LIMIT_OF = SHAPE_TABLES[1].copy()
@@ -340,7 +342,7 @@ def fire_cycle(wait, need, cycle, e, reset, jitter, lk_wait, lk_jitter, key_resi
       is reset to ``x mod E`` exactly, and the next wait is drawn from the
       readout's end (refill key).
 
-    :func:`prepare_fast` (many lanes at once) and :func:`prepare_lane` draw
+    :func:`lane_draw` and :func:`prepare_lane` draw
     the common cases of this function ahead of the firing, with the same
     arithmetic, and :func:`apply_cached` finishes them at the firing.
     """
@@ -367,78 +369,42 @@ def fire_cycle(wait, need, cycle, e, reset, jitter, lk_wait, lk_jitter, key_resi
     return cycle_wait(d2, lane_key(key_refill, pix), k1), d2, c1
 
 
-#: Rows of the event sampler's float64 work array (``EV_WORK_F``, 64): the lanes
-#: to draw, compacted (need, cycle, electrons), what :func:`prepare_fast` makes
-#: of them (wait increment, next need, lowest wait it applies at), and the
-#: block's cache by lane (:data:`GNEXT`, :data:`DNEXT`, :data:`WMIN`; a lane
-#: is *ready*, its cache holding its current cycle's draw, where its ``WMIN``
-#: is below +∞).
-CN, CC, CE, RG, RD, RL, GNEXT, DNEXT, WMIN = range(9)
-EV_WORK_F = 9
+#: Rows of the event sampler's float64 work array (``EV_WORK_F``, 64): the
+#: block's cache by lane (:data:`GNEXT`, :data:`DNEXT`, :data:`WMIN`: wait
+#: increment, next need and the lowest wait it applies at; a lane is *ready*,
+#: its cache holding its current cycle's draw, where its ``WMIN`` is below +∞).
+GNEXT, DNEXT, WMIN = range(3)
+EV_WORK_F = 3
 #: Rows of its uint64 work array (``EV_WORK_U``, 64): the block's wait and jitter
-#: lane keys, the compacted lanes' keys and lane index, :func:`prepare_fast`'s verdict
-#: (1: the cache holds the cycle's draw), and the cache's mask (row
+#: lane keys, :func:`first_waits`' scratch, and the cache's mask (row
 #: :data:`MASKS`, word :data:`FRESH`).
-LKW, LKJ, CKW, CKJ, CI, OK, MASKS = range(7)
-EV_WORK_U = 7
+LKW, LKJ, OK, MASKS = range(4)
+EV_WORK_U = 4
 #: Word of row :data:`MASKS`: the lanes whose cache was made for their current
 #: cycle, ready or not (the others are *stale*).
 FRESH = 0
-#: :func:`prepare_fast` runs on whole vectors: the lanes are padded to a
-#: multiple of this many (a 512-bit register of float64).
-FAST_GROUP = 8
-
-
-@njit(**_inner)
-def prepare_fast(count, reset, jitter, need, cycle, electrons, key_wait, key_jitter, wf, wu):
-    """The part of :func:`fire_cycle` that does not depend on the wait, for
-    ``count`` lanes (their need, cycle, electrons per threshold and wait and
-    jitter lane keys: the compacted rows :data:`CN`, :data:`CC`, :data:`CE`,
-    :data:`CKW`, :data:`CKJ`, or a block's own rows): the jitter normal, the next need
-    ``d`` (row :data:`RD`), the first Marsaglia–Tsang candidate ``g`` of
-    ``Gamma(⌈d⌉)`` (row :data:`RG`), and the lowest wait at the firing for
-    which ``g`` gives the new wait (row :data:`RL`; −∞ for subtract and
-    zero; modulo: ``−wait`` within :func:`drop_free_limit` and
-    ``wait + g > 0``, i.e. ``wait`` above ``−g``, whose next float up it
-    takes).  Row
-    :data:`OK` is 1 where that is the cycle's draw: shape above
-    :data:`SMALL_SHAPE` and below :data:`TABLE_SHAPES`, both normals in the
-    body table, accepted by the squeeze (98.4 % of the spikes at 1000 e⁻ per
-    threshold: the normals' tails take most of the rest); else
-    :func:`prepare_lane` draws it, in scalar code.
-
-    At the firing, ``wait + g`` (modulo and subtract, clamped) or ``g``
-    (zero) is then :func:`fire_cycle`'s new wait where ``wait`` is at least
-    that lowest wait, bit for bit: the same floating-point
-    operations in the same order.  Branch-free, one loop per reset mode and
-    jitter switch (with them as run-time values LLVM kept the loop scalar,
-    2–8× slower), on 512-bit vectors (:func:`prefer_wide_vectors`).
-    """
-    prefer_wide_vectors()
-    lanes = (need, cycle, electrons, key_wait, key_jitter)
-    jittered = jitter > 0.0
-    if reset == MODULO:
-        if jittered:
-            _prepare_loop(MODULO, True, count, jitter, lanes, wf, wu)
-        else:
-            _prepare_loop(MODULO, False, count, jitter, lanes, wf, wu)
-    elif reset == SUBTRACT:
-        if jittered:
-            _prepare_loop(SUBTRACT, True, count, jitter, lanes, wf, wu)
-        else:
-            _prepare_loop(SUBTRACT, False, count, jitter, lanes, wf, wu)
-    elif jittered:
-        _prepare_loop(ZERO, True, count, jitter, lanes, wf, wu)
-    else:
-        _prepare_loop(ZERO, False, count, jitter, lanes, wf, wu)
 
 
 @njit(inline="always", **_opts)
-def _draw_ahead(need, cycle, e, kw, kj, reset, jittered, jitter):
-    """The vector draw of :func:`prepare_fast` for one lane (``kw``, ``kj`` its
-    wait and jitter lane keys): ``(g, d, wmin, ok)``.  Branch-free."""
+def lane_draw(need, k, e, kw, kj, reset, jittered, jitter):
+    """The common case of :func:`fire_cycle` that does not depend on the wait,
+    for one lane in cycle ``k`` (a uint64 counter; ``kw``, ``kj`` its wait and
+    jitter lane keys): ``(g, d, wmin, ok)``, the first Marsaglia–Tsang
+    candidate ``g`` of ``Gamma(⌈d⌉)``, the next need ``d`` and the lowest wait
+    at the firing for which ``g`` gives the new wait (−∞ for subtract and zero;
+    modulo: ``−wait`` within :func:`drop_free_limit` and ``wait + g > 0``,
+    i.e. ``wait`` above ``−g``, whose next float up it takes).  ``ok`` says
+    that ``g`` is the cycle's draw (shape above :data:`SMALL_SHAPE` and below
+    :data:`TABLE_SHAPES`, both normals in the body table, accepted by the
+    squeeze: 98.4 % of the spikes at 1000 e⁻ per threshold); else
+    :func:`prepare_lane` draws it.  At the firing, ``wait + g`` (modulo and
+    subtract, clamped) or ``g`` (zero) is then :func:`fire_cycle`'s new wait
+    where ``wait`` ≥ ``wmin``, bit for bit (:func:`apply_cached`).
+
+    Scalar code: on 256-bit vectors (no 64-bit multiply for the hashes) a
+    vector version measured no faster per lane (13.2 against 12.2 ns at
+    σ_t > 0), and it had to list the lanes to draw."""
     top = np.float64(TABLE_SHAPES - 1)
-    k = np.uint64(cycle)
     eps = 0.0
     z_tail = False
     if jittered:
@@ -448,7 +414,7 @@ def _draw_ahead(need, cycle, e, kw, kj, reset, jittered, jitter):
     g, accepted = _gamma_candidate(hd, readout_key(kw, k + _U1))
     if reset == MODULO:
         h0 = np.ceil(lead + e)
-        limit = _LIMIT_OF[np.uint64(min(h0, top))]  # (read unconditionally: it vectorises)
+        limit = _LIMIT_OF[np.uint64(min(h0, top))]  # (read unconditionally: branch-free)
         wmin = lowest_wait(g, limit if h0 <= top else -np.inf)  # (g > 0 where OK)
     else:
         wmin = -np.inf
@@ -472,24 +438,9 @@ def _gamma_candidate(h, bits):
                & squeeze_accepts(u, x * x, c, t))
 
 
-@njit(inline="always", **_opts)
-def _prepare_loop(reset, jittered, count, jitter, lanes, wf, wu):
-    """:func:`prepare_fast`'s loop for one reset mode and jitter switch
-    (constants at each call, so the branches on them fold away)."""
-    need, cycle, electrons, key_wait, key_jitter = lanes
-    rg, rd, rl, ok = wf[RG], wf[RD], wf[RL], wu[OK]
-    for i in range(count):
-        g, d, wmin, good = _draw_ahead(need[i], cycle[i], electrons[i], key_wait[i],
-                                       key_jitter[i], reset, jittered, jitter)
-        rg[i] = g
-        rd[i] = d
-        rl[i] = wmin
-        ok[i] = np.uint64(good)
-
-
 @njit(**_opts)
 def prepare_lane(need, cycle, e, reset, jitter, lk_wait, lk_jitter):
-    """:func:`prepare_fast`'s draw for one lane in scalar code, for the lanes
+    """The draw of :func:`lane_draw` for the lanes
     it leaves (normals in the tails, small shapes, the log test, shapes beyond
     the tables): ``(g, d, wmin)`` from :func:`fire_cycle`'s own operations
     (the exact normal, :func:`cycle_wait`), the cycle's draw wherever ``wait``
@@ -507,7 +458,7 @@ def prepare_lane(need, cycle, e, reset, jitter, lk_wait, lk_jitter):
 @njit(inline="always", **_opts)
 def apply_cached(wait, g, wmin, e, reset):
     """``(new wait, valid)`` of a firing whose cycle's draw ``g`` and lowest
-    wait ``wmin`` the cache holds (:func:`prepare_fast`), ``wait`` ≤ 0 the
+    wait ``wmin`` the cache holds (:func:`lane_draw`), ``wait`` ≤ 0 the
     wait at the firing: :func:`fire_cycle`'s result where ``valid`` (modulo:
     no drop can happen and the next crossing lies beyond this readout; else
     :func:`fire_cycle` decides).  :func:`spikesim._simd.event_cached_run64`
@@ -540,74 +491,44 @@ def event_sync(used, ev, wf, wu):
         wu[MASKS, FRESH] &= ~used
 
 
-#: From this many stale lanes on, a refill draws the whole block in lane order
-#: (64 draws, no compaction); fewer are listed first and only they are drawn,
-#: which costs about 4 ns a lane more (listing the lanes and putting their
-#: draws back).
-LANE_ORDER_MIN = 32
-
-
 @njit(inline="always", **_opts)
-def event_refill(must, electrons, ev, reset, jitter, wf, wu):
-    """Fill the cache of the stale lanes ``must`` and of other stale lanes: with
-    at least :data:`LANE_ORDER_MIN` stale, every stale lane in lane order
-    (:func:`_refill_in_place`), else ``must`` and as many more as make whole
-    vectors (:func:`_refill_compacted`).  A lane's draw depends only on its
-    state, so drawing it early changes no bit."""
+def event_refill(electrons, ev, reset, jitter, wf, wu):
+    """Fill the cache of every stale lane (:func:`lane_draw`, or
+    :func:`prepare_lane` where it leaves the draw), in scalar code: a lane's
+    draw depends only on its state, so drawing it before its firing changes
+    no bit, and drawing every stale lane at once spares the readout loop its
+    stops."""
     stale = ~wu[MASKS, FRESH]
-    if popcount(stale) >= LANE_ORDER_MIN:
-        _refill_in_place(stale, electrons, ev, reset, jitter, wf, wu)
+    jittered = jitter > 0.0
+    if reset == MODULO:
+        if jittered:
+            _refill_lanes(MODULO, True, stale, electrons, ev, jitter, wf, wu)
+        else:
+            _refill_lanes(MODULO, False, stale, electrons, ev, jitter, wf, wu)
+    elif reset == SUBTRACT:
+        _refill_lanes(SUBTRACT, jittered, stale, electrons, ev, jitter, wf, wu)
     else:
-        _refill_compacted(must, electrons, ev, reset, jitter, wf, wu)
+        _refill_lanes(ZERO, jittered, stale, electrons, ev, jitter, wf, wu)
+    wu[MASKS, FRESH] = ~np.uint64(0)
 
 
 @njit(inline="always", **_opts)
-def _refill_in_place(stale, electrons, ev, reset, jitter, wf, wu):
-    """Fill the cache of every lane of ``stale``: :func:`prepare_fast` on the
-    block's own rows (every lane: a lane's draw depends only on its state, so
-    the others' are merely not kept), then :func:`prepare_lane` for the stale
-    lanes its vectors leave."""
-    prepare_fast(BLOCK, reset, jitter, ev[NEED], ev[CYCLE], electrons, wu[LKW], wu[LKJ], wf, wu)
-    masked_move64(stale, wf[GNEXT], wf[RG])
-    masked_move64(stale, wf[DNEXT], wf[RD])
-    masked_move64(stale, wf[WMIN], wf[RL])
-    left = stale & high_bits_at_least64(wu[OK], 0, 1, 1)  # (OK = 0)
-    while left != 0:
-        lane = lowest_bit_index(left)
-        left &= left - _U1
-        _prepare_lane_into(lane, electrons, ev, reset, jitter, wf, wu)
-    wu[MASKS, FRESH] |= stale
-
-
-@njit(inline="always", **_opts)
-def _refill_compacted(must, electrons, ev, reset, jitter, wf, wu):
-    """Fill the cache of the stale lanes ``must`` and of as many other stale
-    lanes as make whole vectors (at least those ``must`` rounded up to
-    :data:`FAST_GROUP`, at most every stale lane rounded down): their indices
-    are listed, :func:`prepare_fast` draws them, and the results go back by lane."""
-    stale = ~wu[MASKS, FRESH]
-    n_stale = np.int64(popcount(stale))
-    want = max((np.int64(popcount(must)) + FAST_GROUP - 1) // FAST_GROUP * FAST_GROUP,
-               n_stale // FAST_GROUP * FAST_GROUP)
-    count = _list_lanes(must, BLOCK, ev, electrons, wf, wu, 0)
-    count = _list_lanes(stale & ~must, want, ev, electrons, wf, wu, count)
-    full = (count + FAST_GROUP - 1) // FAST_GROUP * FAST_GROUP
-    for i in range(count, full):  # whole vectors: harmless padding lanes
-        wf[CN, i] = 1000.0
-        wf[CC, i] = 0.0
-        wf[CE, i] = 1000.0
-    prepare_fast(full, reset, jitter, wf[CN], wf[CC], wf[CE], wu[CKW], wu[CKJ], wf, wu)
-    fresh = wu[MASKS, FRESH]
-    for i in range(count):
-        lane = wu[CI, i]
-        if wu[OK, i] != 0:
-            wf[GNEXT, lane] = wf[RG, i]
-            wf[DNEXT, lane] = wf[RD, i]
-            wf[WMIN, lane] = wf[RL, i]
-        else:  # (1.6 % at 1000 e⁻: a normal's tail) the same draw, scalar
+def _refill_lanes(reset, jittered, stale, electrons, ev, jitter, wf, wu):
+    """:func:`event_refill` for one reset mode and jitter switch (constants at
+    each call, so the branches on them fold away)."""
+    need, cycle = ev[NEED], ev[CYCLE]
+    m = stale
+    while m != 0:
+        lane = lowest_bit_index(m)
+        m &= m - _U1
+        g, d, wmin, ok = lane_draw(need[lane], np.uint64(cycle[lane]), electrons[lane],
+                                   wu[LKW, lane], wu[LKJ, lane], reset, jittered, jitter)
+        if ok:
+            wf[GNEXT, lane] = g
+            wf[DNEXT, lane] = d
+            wf[WMIN, lane] = wmin
+        else:  # (1.6 % at 1000 e⁻: a normal's tail) the same draw, exactly
             _prepare_lane_into(lane, electrons, ev, reset, jitter, wf, wu)
-        fresh |= _U1 << lane
-    wu[MASKS, FRESH] = fresh
 
 
 @njit(inline="always", **_opts)
@@ -621,25 +542,6 @@ def _prepare_lane_into(lane, electrons, ev, reset, jitter, wf, wu):
 
 
 @njit(inline="always", **_opts)
-def _list_lanes(mask, stop, ev, electrons, wf, wu, count):
-    """Compact the lanes of ``mask``, lowest first, into the work rows from
-    position ``count`` up to ``stop`` (their need, cycle, electrons, keys and
-    lane index); returns the new count."""
-    m = mask
-    while m != 0 and count < stop:
-        lane = lowest_bit_index(m)
-        m &= m - _U1
-        wu[CI, count] = lane
-        wf[CN, count] = ev[NEED, lane]
-        wf[CC, count] = ev[CYCLE, lane]
-        wf[CE, count] = electrons[lane]
-        wu[CKW, count] = wu[LKW, lane]
-        wu[CKJ, count] = wu[LKJ, lane]
-        count += 1
-    return count
-
-
-@njit(inline="always", **_opts)
 def event_settle(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu):
     """End the cycle of every lane of ``mask`` (non-zero) after a readout, the
     waits at the firing in ``ev``: stale lanes get their cache filled
@@ -647,7 +549,7 @@ def event_settle(mask, electrons, ev, reset, jitter, keys, pix0, wf, wu):
     :func:`apply_cached` allows, :func:`fire_cycle` does the rest; their cache
     is spent."""
     if mask & ~wu[MASKS, FRESH] != 0:
-        event_refill(mask & ~wu[MASKS, FRESH], electrons, ev, reset, jitter, wf, wu)
+        event_refill(electrons, ev, reset, jitter, wf, wu)
     wait = ev[WAIT]
     m = mask
     while m != 0:
@@ -670,12 +572,13 @@ def static_charge(n, t_a, inv, level, slope, gain, offset, electrons, lam_max, l
     """``lam[l]``: the electrons lane ``l`` collects per readout on a run of
     constant radiance (``slope`` zero) from readout ``n``,
     ``min((gain·(level + slope·phi) + offset)·E, lam_max)`` with ``phi = (n + ½ −
-    t_a)·inv``: :func:`spikesim._simd.event_cached_run64`'s operations in its
-    order, made once for the static variants."""
+    t_a)·inv`` (:func:`spikesim._simd.event_cached_run64`'s operations in its
+    order) rounded to :data:`CHARGE_GRID`, made once for the static variants
+    and :func:`event_direct`."""
     phi = (np.float64(n) + 0.5 - t_a) * inv
     for lane in range(BLOCK):
         qe = (gain[lane] * (level[lane] + slope[lane] * phi) + offset[lane]) * electrons[lane]
-        lam[lane] = lam_max if lam_max < qe else qe
+        lam[lane] = on_grid(lam_max if lam_max < qe else qe)
 
 
 @njit(inline="always", **_opts)
@@ -746,7 +649,7 @@ def init_event_block(ev, frac, electrons_row, x0, wu):
 def first_waits(ev, wu):
     """The first wait of every lane, ``cycle_wait(need, lane key, 0)``, into row
     :data:`WAIT` of ``ev``: the first Marsaglia–Tsang candidate on 512-bit
-    vectors with :func:`prepare_fast`'s operations (the same bits as
+    vectors with :func:`lane_draw`'s operations (the same bits as
     :func:`gamma_integer`), then :func:`cycle_wait` itself, in scalar code, for
     the lanes the vectors leave (the normal's tail, small shapes, shapes beyond
     the table, the log test).  Row :data:`OK` of ``wu`` is scratch.  A fresh
@@ -764,3 +667,147 @@ def first_waits(ev, wu):
         lane = lowest_bit_index(left)
         left &= left - _U1
         wait[lane] = cycle_wait(need[lane], key[lane], 0)
+
+
+#: The grid of a run of constant radiance's charge ``λ`` (electrons per
+#: readout): :func:`static_charge` rounds ``λ`` to a multiple of 2⁻³² e⁻ (a
+#: change of at most 1.2e-10 e⁻ a readout).  A wait ``w`` below
+#: :data:`EXACT_WAIT` (2²⁰ e⁻) is a multiple of its own ulp ≤ 2⁻³², so every
+#: ``w − j·λ`` between ``w`` and the first one ≤ 0 is a multiple of that ulp no
+#: larger than ``w`` in magnitude: representable, so each subtraction of the
+#: per-readout loop is exact, and so is the product ``j·λ`` (a multiple of
+#: 2⁻³² below 2²¹ for λ ≤ :data:`EXACT_CHARGE`).  Hence ``w − j·λ``, computed
+#: at once, is bit for bit what ``j`` subtractions give, whatever the chunks.
+CHARGE_GRID = 2.0**-32
+_GRID_INV = 2.0**32
+EXACT_WAIT = 2.0**20
+EXACT_CHARGE = 2.0**18
+
+
+@njit(inline="always", **_opts)
+def on_grid(lam):
+    """``lam`` rounded to a multiple of :data:`CHARGE_GRID` (half up); values
+    beyond 2²¹ already are (their ulp is coarser) and come back unchanged."""
+    return np.floor(lam * _GRID_INV + 0.5) * CHARGE_GRID
+
+
+@njit(inline="always", **_opts)
+def crossing(w, lam, inv_lam, left):
+    """The readouts to the next firing of a lane with wait ``w`` (0 < ``w`` <
+    :data:`EXACT_WAIT`) on a constant charge ``lam`` (on :data:`CHARGE_GRID`,
+    at most :data:`EXACT_CHARGE`; ``inv_lam`` = 1/lam, +∞ for 0): the least
+    ``k`` ≥ 1 with ``k·lam ≥ w``, i.e. the first readout at whose end the
+    per-readout loop's wait ``w − k·lam`` is ≤ 0, or ``left + 1`` when that
+    is beyond the ``left`` readouts still to go.  The estimate ``⌈w/lam⌉``
+    is off by at most one where it matters (``k`` ≤ ``left + 2`` < 2⁵⁰);
+    the exact products (:data:`CHARGE_GRID`) correct it.  Float64 ``k``."""
+    k = np.ceil(w * inv_lam)
+    if not k <= left + 2.0:
+        return left + 1.0
+    if k > 1.0 and (k - 1.0) * lam >= w:
+        k -= 1.0
+    elif k * lam < w:
+        k += 1.0
+    return k if k <= left else left + 1.0
+
+
+@njit(inline="always", **_opts)
+def event_direct(ev, lam, electrons, reset, jitter, keys, pix0, wf, wu, words, count):
+    """``count`` readouts of a run of constant charge ``lam`` (64 lanes, e⁻ per
+    readout on :data:`CHARGE_GRID`, each ≤ :data:`EXACT_CHARGE`) for a block
+    without charge loss, lane by lane from firing to firing: its spike words
+    into ``words[:count]`` (bit ``l`` of ``words[k]``: lane ``l`` fired at the
+    run's readout ``k``), its state ``ev`` advanced; the same bits as the
+    per-readout loop (:data:`CHARGE_GRID`), with no work per readout.
+
+    Per lane: :func:`crossing` finds the next firing, the wait at it is
+    ``w − k·λ`` (exact), :func:`lane_draw` the next cycle's draw and
+    :func:`apply_cached` its validity; :func:`fire_cycle` what that leaves.  A
+    wait at or above :data:`EXACT_WAIT` (only at an enormous threshold) is
+    stepped readout by readout, the per-readout loop's own arithmetic.  The
+    cache of the lanes that fired is spent (their cycles moved on)."""
+    if count <= 0:
+        return
+    for k in range(count):
+        words[k] = np.uint64(0)
+    jittered = jitter > 0.0
+    if reset == MODULO:
+        if jittered:
+            _direct_lanes(MODULO, True, ev, lam, electrons, jitter, keys, pix0, wu, words, count)
+        else:
+            _direct_lanes(MODULO, False, ev, lam, electrons, jitter, keys, pix0, wu, words, count)
+    elif reset == SUBTRACT:
+        _direct_lanes(SUBTRACT, jittered, ev, lam, electrons, jitter, keys, pix0, wu, words,
+                      count)
+    else:
+        _direct_lanes(ZERO, jittered, ev, lam, electrons, jitter, keys, pix0, wu, words, count)
+    fired = np.uint64(0)
+    for k in range(count):
+        fired |= words[k]
+    wmin = wf[WMIN]
+    for lane in range(BLOCK):
+        if (fired >> np.uint64(lane)) & _U1:
+            wmin[lane] = np.inf
+    wu[MASKS, FRESH] &= ~fired
+
+
+@njit(inline="always", **_opts)
+def _direct_lanes(reset, jittered, ev, lam, electrons, jitter, keys, pix0, wu, words, count):
+    """:func:`event_direct` for one reset mode and jitter switch (constants at
+    each call).  A lane's wait, need and cycle stay in registers between its
+    firings; the cycle as an integer (a float64 → uint64 conversion per draw
+    measured 1.3 ns)."""
+    wait, need, cyc = ev[WAIT], ev[NEED], ev[CYCLE]
+    fcount = np.float64(count)
+    for lane in range(BLOCK):
+        w = wait[lane]
+        lm = lam[lane]
+        if not lm > 0.0 and w > 0.0:  # never fires in this run; its wait stays
+            continue
+        bit = _U1 << np.uint64(lane)
+        inv_lam = 1.0 / lm if lm > 0.0 else np.inf
+        e = electrons[lane]
+        kw, kj = wu[LKW, lane], wu[LKJ, lane]
+        nd = need[lane]
+        c = np.uint64(cyc[lane])
+        p = 0.0  # readouts of the run done
+        while True:
+            left = fcount - p
+            if w <= 0.0:
+                k = 1.0  # the same single subtraction as the loop's
+                wfire = w - lm
+            elif w < EXACT_WAIT:
+                k = crossing(w, lm, inv_lam, left)
+                if k > left:
+                    w = w - left * lm
+                    break
+                wfire = w - k * lm
+            else:  # the loop's own subtractions
+                k = 0.0
+                while k < left and w > 0.0:
+                    w = w - lm
+                    k += 1.0
+                if w > 0.0:
+                    break
+                wfire = w
+            words[np.int64(p + k) - 1] |= bit
+            g, d, wmin, ok = lane_draw(nd, c, e, kw, kj, reset, jittered, jitter)
+            nw, valid = apply_cached(wfire, g, wmin if ok else np.inf, e, reset)
+            if valid:
+                w = nw
+                nd = d
+                c += _U1
+            else:
+                wait[lane] = wfire
+                need[lane] = nd
+                cyc[lane] = np.float64(c)
+                _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu)
+                w = wait[lane]
+                nd = need[lane]
+                c = np.uint64(cyc[lane])
+            p += k
+            if p >= fcount:
+                break
+        wait[lane] = w
+        need[lane] = nd
+        cyc[lane] = np.float64(c)

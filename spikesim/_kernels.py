@@ -59,9 +59,11 @@ from spikesim._event import (
     BACKLOG_MAX,
     EV_WORK_F,
     EV_WORK_U,
+    EXACT_CHARGE,
     GNEXT,
     WMIN,
     event_cache_clear,
+    event_direct,
     event_lane_keys,
     event_settle,
     event_step,
@@ -447,7 +449,7 @@ def _noise_rows(model, y, x0, electrons, charge_sd):
 
 @njit(**_inner)
 def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
-                scratch_f, scratch_u, ev):
+                scratch_f, scratch_u, ev, words):
     """All runs of one chunk (``runs``, a :class:`RunSchedule`) for one 64-pixel
     block and one accumulator set (``model``, a :class:`PixelModel`; its state
     ``frac``, ``whole`` and ``ev`` are the block's contiguous copies).
@@ -516,6 +518,15 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                 if moving == 0:
                     static_charge(n0, t_a, inv, ia, di, gain, offset, electrons, LAMBDA_MAX,
                                   ibuf)
+                    exact = 0
+                    for lane in range(BLOCK):
+                        exact += 1 if ibuf[lane] <= EXACT_CHARGE else 0
+                    if exact == BLOCK:  # firing to firing, no work per readout
+                        event_direct(ev, ibuf, electrons, reset, model.jitter, model.ev_keys,
+                                     pix0, ev_f, ev_u, words, n1 - n0)
+                        for k in range(n1 - n0):
+                            _put(out, n0 + k - t_off, y, blk, words[k])
+                        continue
                 n = n0
                 while n < n1:
                     k, bad = _event_run(ev, ibuf if moving == 0 else ia, di, gain, offset,
@@ -694,10 +705,11 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
         f = np.empty(BLOCK, np.uint64)  # a block's accumulator
         w = np.empty(BLOCK, np.int64)
         f0 = np.empty(BLOCK, np.uint64)  # its initial fraction, for the twin
+        words = np.empty(max(1, runs.stop[-1] - runs.start[0]), np.uint64)  # a run's spikes
         for y in range(task * rows, min(height, task * rows + rows)):
             _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init, keep,
                           twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f,
-                          w, f0)
+                          w, f0, words)
 
 
 @njit(**_opts)
@@ -721,7 +733,8 @@ def spread_step(n):
 
 @njit(**_inner)
 def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
-                  twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f, w, f0):
+                  twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f, w, f0,
+                  words):
     """Row ``y`` of :func:`simulate_chunk` (same arguments), block by block,
     with the task's contiguous work rows (``scratch_f``, ``scratch_u``, see
     :func:`_block_runs`), the block's event state ``ev`` (4, 64), accumulator ``f``, ``w``
@@ -753,7 +766,8 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
                 for k in range(4):
                     for lane in range(BLOCK):
                         ev[k, lane] = aux[k, y, x0 + lane]
-        _block_runs(frames, y, x0, width, t_off, runs, model, f, w, out, scratch_f, scratch_u, ev)
+        _block_runs(frames, y, x0, width, t_off, runs, model, f, w, out, scratch_f, scratch_u, ev,
+                    words)
         if keep:
             _store_state(frac, whole, y, x0, f, w)
             if use_aux:
@@ -768,7 +782,7 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
             else:
                 _load_state(twin_state.frac, twin_state.whole, y, x0, f, w)
             _block_runs(frames, y, x0, width, t_off, runs, twin_model, f, w, twin_out,
-                        scratch_f, scratch_u, ev)
+                        scratch_f, scratch_u, ev, words)
             if keep:
                 _store_state(twin_state.frac, twin_state.whole, y, x0, f, w)
 

@@ -413,8 +413,6 @@ def _bit_count(name, flag):
     return bit_count
 
 
-popcount = _bit_count("llvm.ctpop", None)
-popcount.__doc__ = """Number of set bits of a uint64 (``ctpop``)."""
 lowest_bit_index = _bit_count("llvm.cttz", 1)
 lowest_bit_index.__doc__ = """Index of the lowest set bit of a non-zero uint64 (``cttz``)."""
 
@@ -429,9 +427,7 @@ def prefer_wide_vectors(typingctx):
     clock drop some older parts showed, and with it the cost model left loops
     of hashes and table gathers scalar: on this project's host the block's
     normal deviates (:func:`spikesim.rng.normals_into`) took 158 ns per 64
-    lanes instead of 79, and the per-spike draws' loop
-    (:func:`spikesim._event.prepare_fast`) measured 1.5× faster with 512-bit
-    vectors.  The attribute is ignored where the CPU
+    lanes instead of 79.  The attribute is ignored where the CPU
     has no wider vectors.  The function is also marked ``noinline``: an
     inlined copy would be optimised under its caller's attributes.  llvmlite
     only lets a fixed list of attribute names be added, so the string
@@ -642,22 +638,3 @@ def advance_cycles64(typingctx, mask, need, dnext, cycle):
         return context.get_dummy_value()
 
     return types.void(mask, need, dnext, cycle), codegen
-
-
-@intrinsic
-def masked_move64(typingctx, mask, dst, src):
-    """``dst[k] = src[k]`` for the lanes ``k`` of ``mask`` (bit ``k``), 64
-    contiguous float64 lanes each: a vector select, stored whole
-    (:func:`_merge_store`)."""
-    if not (mask == types.uint64 and _is_f64_array(dst) and _is_f64_array(src)):
-        return None
-
-    def codegen(context, builder, sig, args):
-        fvec = ir.VectorType(ir.DoubleType(), LANES)
-        zero = ir.IntType(64)(0)
-        m = builder.bitcast(args[0], ir.VectorType(ir.IntType(1), LANES))
-        dst_p, src_p = (_lanes_ptr(context, builder, sig, args, k, zero, fvec) for k in (1, 2))
-        _merge_store(context, builder, m, builder.load(src_p, align=8), dst_p)
-        return context.get_dummy_value()
-
-    return types.void(mask, dst, src), codegen

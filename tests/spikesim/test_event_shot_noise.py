@@ -50,6 +50,102 @@ def test_event_sampler_matches_reference(reset, e, bright, loss, jitter):
     assert 0.02 < ss.bits.unpack(got, 70).mean() < 0.98
 
 
+@pytest.mark.parametrize("reset", RESETS)
+@pytest.mark.parametrize("e, bright, jitter", [(1000.0, 1.0, 0.006), (3.6, 1.5, 0.1)])
+def test_static_scene_matches_reference(reset, e, bright, jitter):
+    """A static scene (every run of constant radiance: firing to firing,
+    :func:`spikesim._event.event_direct`), chunk size 29, against the reference."""
+    rng = np.random.default_rng(6)
+    clock, n = 1000.0, 120
+    noise = ss.noise.PhysicalNoise(electrons_per_threshold=e, temporal_threshold_noise=jitter,
+                                   hot_pixel_fraction=0.05)
+    sensor = ss.Sensor(height=3, width=70, cfa="RGGB", clock_hz=clock, reset=reset, noise=noise)
+    scene = ss.scenes.Static((rng.random((3, 70, 3)) * bright).astype(np.float32))
+    got = ss.simulate(scene, sensor, n, seed=3, chunk_readouts=29).packed
+    np.testing.assert_array_equal(got, reference_simulate(scene, sensor, n, seed=3))
+    assert 0.02 < ss.bits.unpack(got, 70).mean() < 0.98
+
+
+def _per_readout(ev, lam, electrons, reset, jitter, keys, lkw, lkj, count):
+    """The definition :func:`event_direct` must equal: subtract ``λ`` every
+    readout, fire where the wait is ≤ 0 and end the cycle with
+    :func:`fire_cycle`.  Returns the spike words; ``ev`` is advanced."""
+    words = []
+    for _ in range(count):
+        ev[_event.WAIT] = ev[_event.WAIT] - lam
+        word = 0
+        for lane in np.flatnonzero(ev[_event.WAIT] <= 0.0).tolist():
+            word |= 1 << lane
+            ev[_event.WAIT, lane], ev[_event.NEED, lane], ev[_event.CYCLE, lane] = (
+                _event.fire_cycle(ev[_event.WAIT, lane], ev[_event.NEED, lane],
+                                  ev[_event.CYCLE, lane], electrons[lane], reset, jitter,
+                                  lkw[lane], lkj[lane], keys[1], keys[2], np.uint64(lane)))
+        words.append(word)
+    return words
+
+
+def _direct_block(rng, e):
+    """A block's state and constant charges covering the direct path's cases:
+    no light, a trace of it, typical, near and beyond one threshold a readout
+    (modulo drops, subtract backlogs), waits at or below zero and waits beyond
+    the exact range (stepped)."""
+    electrons = e * (1.0 + 0.05 * rng.standard_normal(64))
+    frac = rng.random(64)
+    lam = electrons * np.repeat([0.0, 1e-7, 0.05, 0.17, 0.4, 0.75, 1.2, 3.0], 8)
+    lam = np.array([_event.on_grid(x) for x in lam])
+    ev = np.zeros((4, 64))
+    ev[_event.NEED] = electrons * (1.0 - frac)
+    ev[_event.CYCLE] = rng.integers(0, 50, 64).astype(np.float64)
+    ev[_event.WAIT] = electrons * (1.0 - frac) * (0.5 + rng.random(64))
+    ev[_event.WAIT, ::9] = -rng.random(8) * lam[::9]  # fire at the first readout
+    ev[_event.WAIT, 5::13] = 2.0**20 + rng.random(5) * 1e3  # beyond the exact range
+    return ev, lam, electrons
+
+
+@pytest.mark.parametrize("reset", [0, 1, 2])
+@pytest.mark.parametrize("e, jitter", [(1000.0, 0.006), (1000.0, 0.0), (40.0, 0.1), (5.0, 0.2)])
+def test_direct_runs_equal_the_per_readout_definition_bit_for_bit(reset, e, jitter):
+    """:func:`event_direct` (firing to firing) gives the words and the state of
+    the per-readout definition bit for bit, in one run or split in two."""
+    rng = np.random.default_rng(reset * 17 + int(e))
+    ev, lam, electrons = _direct_block(rng, e)
+    keys = rng.integers(1, 2**63, 4, dtype=np.uint64)
+    wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
+    wu[_event.LKW] = [_event.lane_key(keys[0], np.uint64(p)) for p in range(64)]
+    wu[_event.LKJ] = [_event.lane_key(keys[3], np.uint64(p)) for p in range(64)]
+    wf = np.zeros((_event.EV_WORK_F, 64))
+    count = 300
+    want_ev = ev.copy()
+    want = _per_readout(want_ev, lam, electrons, reset, jitter, keys, wu[_event.LKW],
+                        wu[_event.LKJ], count)
+    for split in (count, 137):
+        got_ev, words = ev.copy(), np.zeros(count, np.uint64)
+        _event.event_direct(got_ev, lam, electrons, reset, jitter, keys, np.uint64(0), wf, wu,
+                            words, split)
+        if split < count:
+            rest = np.zeros(count - split, np.uint64)
+            _event.event_direct(got_ev, lam, electrons, reset, jitter, keys, np.uint64(0), wf,
+                                wu, rest, count - split)
+            words[split:] = rest
+        assert [int(x) for x in words] == want
+        np.testing.assert_array_equal(got_ev[:3].view(np.uint64), want_ev[:3].view(np.uint64))
+    assert sum(bin(x).count("1") for x in want) > 64  # every kind of lane fired
+
+
+def test_static_charge_is_on_the_exact_grid():
+    """:func:`static_charge` rounds ``λ`` to :data:`CHARGE_GRID` (what makes the
+    direct runs exact), by at most half a step, and leaves large values alone."""
+    rng = np.random.default_rng(9)
+    level = rng.random(64) * 3.0
+    gain, offset, e = 1.0 + rng.random(64), np.full(64, 0.003), np.full(64, 977.7)
+    lam = np.empty(64)
+    _event.static_charge(4, 1.5, 0.0, level, np.zeros(64), gain, offset, e, 2.0**62, lam)
+    exact = (gain * level + offset) * e
+    assert np.all(lam * 2.0**32 == np.round(lam * 2.0**32))
+    assert np.max(np.abs(lam - exact)) <= 2.0**-33
+    assert _event.on_grid(3.0e7 + 0.1) == 3.0e7 + 0.1 and _event.on_grid(2.0**62) == 2.0**62
+
+
 def test_negligible_drop_rule_keeps_below_two_to_the_minus_64():
     """Where :func:`drop_negligible` skips a modulo drop, the exact Poisson tail
     P(Poisson(L) >= h0) is below 2**-64, and the rule gives away little: its
@@ -120,45 +216,41 @@ def _squeeze(u, x2, c, t):
 
 
 def _lanes(rng, n, e, bright):
-    """Work arrays of ``n`` compacted lanes (needs near ``e``, cycles, keys) and
-    their waits at a firing, just below 0 (down to ``−bright·e``, the
+    """``n`` lanes (needs near ``e``, cycles, electrons, wait and jitter keys)
+    and their waits at a firing, just below 0 (down to ``−bright·e``, the
     electrons of a readout)."""
-    wf = np.zeros((_event.EV_WORK_F, n))
-    wu = np.zeros((_event.EV_WORK_U, n), np.uint64)
-    wf[_event.CN] = e * (0.5 + rng.random(n))
-    wf[_event.CC] = rng.integers(0, 5000, n).astype(np.float64)
-    wf[_event.CE] = e * (1.0 + 0.05 * rng.standard_normal(n))
-    wu[_event.CKW] = rng.integers(0, 2**63, n, dtype=np.uint64) * np.uint64(2) + np.uint64(1)
-    wu[_event.CKJ] = rng.integers(0, 2**63, n, dtype=np.uint64) * np.uint64(2)
-    return wf, wu, -rng.random(n) * bright * e
+    need = e * (0.5 + rng.random(n))
+    cycle = rng.integers(0, 5000, n).astype(np.float64)
+    electrons = e * (1.0 + 0.05 * rng.standard_normal(n))
+    kw = rng.integers(0, 2**63, n, dtype=np.uint64) * np.uint64(2) + np.uint64(1)
+    kj = rng.integers(0, 2**63, n, dtype=np.uint64) * np.uint64(2)
+    return need, cycle, electrons, kw, kj, -rng.random(n) * bright * e
 
 
 @pytest.mark.parametrize("reset", [0, 1, 2])
 @pytest.mark.parametrize("e, bright, jitter", [(1000.0, 0.5, 0.006), (1000.0, 1.5, 0.0),
                                                 (40.0, 0.9, 0.1), (5.0, 0.5, 0.2)])
-def test_prepared_draw_gives_the_scalar_cycle_where_it_applies(reset, e, bright, jitter):
-    """:func:`prepare_fast` (whole vectors, ahead of the firing), or
-    :func:`prepare_lane` for the lanes it leaves, then :func:`apply_cached` at
-    the firing give :func:`fire_cycle`'s bits for every lane where they apply;
-    the vectors take ≥ 97 % of the spikes at the default 1000 e⁻ per
-    threshold, and with the scalar lanes the cache holds every subtract and
-    zero firing and the modulo ones below the drop-free limit."""
+def test_drawn_ahead_cycle_gives_the_scalar_cycle_where_it_applies(reset, e, bright, jitter):
+    """:func:`lane_draw` (ahead of the firing), or :func:`prepare_lane` for the
+    lanes it leaves, then :func:`apply_cached` at the firing give
+    :func:`fire_cycle`'s bits for every lane where they apply; ``lane_draw``
+    takes ≥ 97 % of the spikes at the default 1000 e⁻ per threshold, and with
+    ``prepare_lane`` the cache holds every subtract and zero firing and the
+    modulo ones below the drop-free limit."""
     rng = np.random.default_rng(reset * 31 + int(e))
     n = 4096
-    wf, wu, waits = _lanes(rng, n, e, bright)
-    _event.prepare_fast(n, reset, jitter, wf[_event.CN], wf[_event.CC], wf[_event.CE],
-                        wu[_event.CKW], wu[_event.CKJ], wf, wu)
-    vector = applied = 0
+    need, cycle, electrons, kw, kj, waits = _lanes(rng, n, e, bright)
+    fast = applied = 0
     for i in range(n):
-        state = (wf[_event.CN, i], wf[_event.CC, i], wf[_event.CE, i])
-        want = _event.fire_cycle(waits[i], *state, reset, jitter, wu[_event.CKW, i],
-                                 wu[_event.CKJ, i], np.uint64(5), np.uint64(6), np.uint64(i))
-        if wu[_event.OK, i]:
-            vector += 1
-            g, d, wmin = wf[_event.RG, i], wf[_event.RD, i], wf[_event.RL, i]
+        state = (need[i], cycle[i], electrons[i])
+        want = _event.fire_cycle(waits[i], *state, reset, jitter, kw[i], kj[i], np.uint64(5),
+                                 np.uint64(6), np.uint64(i))
+        g, d, wmin, ok = _event.lane_draw(need[i], np.uint64(cycle[i]), electrons[i], kw[i],
+                                          kj[i], reset, jitter > 0.0, jitter)
+        if ok:
+            fast += 1
         else:
-            g, d, wmin = _event.prepare_lane(*state, reset, jitter, wu[_event.CKW, i],
-                                             wu[_event.CKJ, i])
+            g, d, wmin = _event.prepare_lane(*state, reset, jitter, kw[i], kj[i])
         new_wait, valid = _event.apply_cached(waits[i], g, wmin, state[2], reset)
         if valid:
             applied += 1
@@ -168,19 +260,16 @@ def test_prepared_draw_gives_the_scalar_cycle_where_it_applies(reset, e, bright,
         else:
             assert reset == 0  # only modulo firings beyond the limit go to fire_cycle
     if e >= 1000.0 and bright <= 0.5:
-        assert vector > 0.97 * n and applied == n
+        assert fast > 0.97 * n and applied == n
     if e <= 5.0:
-        assert vector < 0.01 * n  # shapes ≤ 8 (nearly all here): the scalar product of uniforms
+        assert fast < 0.01 * n  # shapes ≤ 8 (nearly all here): the scalar product of uniforms
 
 
 @pytest.mark.parametrize("reset", [0, 1, 2])
-@pytest.mark.parametrize("n_stale", [5, 31, 32, 64])
-def test_refill_draws_every_stale_lane_it_must_as_the_scalar_draw_and_keeps_the_rest(reset,
-                                                                                       n_stale):
-    """:func:`event_refill`, compacted (fewer than ``LANE_ORDER_MIN`` stale) or
-    in lane order: the lanes it must draw, and whichever other stale lanes it
-    draws, hold :func:`prepare_lane`'s draw bit for bit; fresh lanes keep their
-    cache; the fresh mask gains exactly the drawn lanes."""
+@pytest.mark.parametrize("n_stale", [0, 5, 64])
+def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(reset, n_stale):
+    """:func:`event_refill` gives every stale lane :func:`prepare_lane`'s draw
+    bit for bit, leaves the fresh lanes' cache alone, and makes every lane fresh."""
     rng = np.random.default_rng(reset * 7 + n_stale)
     ev = np.zeros((4, 64))
     ev[_event.NEED] = 1000.0 * (0.2 + rng.random(64))
@@ -191,26 +280,20 @@ def test_refill_draws_every_stale_lane_it_must_as_the_scalar_draw_and_keeps_the_
     wu[_event.LKW] = rng.integers(0, 2**63, 64, dtype=np.uint64)
     wu[_event.LKJ] = rng.integers(0, 2**63, 64, dtype=np.uint64)
     stale_lanes = rng.choice(64, n_stale, replace=False)
-    stale = np.uint64(sum(1 << int(k) for k in stale_lanes))
-    must = np.uint64(sum(1 << int(k) for k in stale_lanes[:3]))
-    wu[_event.MASKS, _event.FRESH] = ~stale
+    stale = sum(1 << int(k) for k in stale_lanes)
+    wu[_event.MASKS, _event.FRESH] = ~np.uint64(stale)
     jitter = 0.006
-    _event.event_refill(must, electrons, ev, reset, jitter, wf, wu)
-    fresh = int(wu[_event.MASKS, _event.FRESH])
-    drawn = fresh & int(stale)
-    assert drawn & int(must) == int(must)
-    if n_stale >= _event.LANE_ORDER_MIN:
-        assert drawn == int(stale)
+    _event.event_refill(electrons, ev, reset, jitter, wf, wu)
+    assert int(wu[_event.MASKS, _event.FRESH]) == 2**64 - 1
     for lane in range(64):
         cached = wf[[_event.GNEXT, _event.DNEXT, _event.WMIN], lane]
-        if drawn >> lane & 1:
+        if stale >> lane & 1:
             want = _event.prepare_lane(ev[_event.NEED, lane], ev[_event.CYCLE, lane],
                                        electrons[lane], reset, jitter, wu[_event.LKW, lane],
                                        wu[_event.LKJ, lane])
             assert cached.view(np.uint64).tolist() == np.array(want).view(np.uint64).tolist()
         else:
             assert cached.tolist() == [7.5, 7.5, 7.5]
-    assert fresh == int(~stale) | drawn
 
 
 @pytest.mark.parametrize("seed", range(6))

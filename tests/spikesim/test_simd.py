@@ -21,10 +21,8 @@ from spikesim._simd import (
     linear_carry_run64,
     linear_carry_run64_zero,
     lowest_bit_index,
-    masked_move64,
     paper_carry_add64,
     paper_carry_add64_zero,
-    popcount,
     prefer_wide_vectors,
     store_word,
 )
@@ -72,10 +70,6 @@ def _outside(values, shift, low, span):
 def _ctz(m):
     return lowest_bit_index(m)
 
-
-@njit
-def _popcount(m):
-    return popcount(m)
 
 
 @njit
@@ -229,17 +223,11 @@ def test_store_word_writes_the_low_bytes_little_endian_and_nothing_else():
             np.testing.assert_array_equal(out, expect)
 
 
-def test_popcount_counts_the_set_bits():
-    rng = np.random.default_rng(3)
-    for m in [0, 1, 2**63, 2**64 - 1, *rng.integers(0, 2**63, 50, dtype=np.uint64).tolist()]:
-        assert int(_popcount(np.uint64(m))) == bin(int(m)).count("1")
-
-
 @pytest.mark.parametrize("variant", [0, 1, 2, 3])
 def test_event_cached_run64_equals_the_scalar_steps_and_stops_where_a_lane_cannot_take(variant):
     """Waits in registers: each readout subtracts ``min((g·(a + d·phi) + o)·E,
-    cap)`` (static variants: ``d`` = 0, and that ``λ`` is their ``level``
-    argument, made once by ``static_charge``); a firing lane whose wait is ≥ its
+    cap)`` (static variants: ``d`` = 0, and their ``level`` argument is ``λ``,
+    made once by ``static_charge`` and rounded to its grid); a firing lane whose wait is ≥ its
     ``wmin`` takes ``max(wait + gnext, floor·E)`` (zero reset: ``gnext``) and
     its ``wmin`` becomes +∞; every readout's firing word is stored; the call
     ends after the first readout where a firing lane could not take, returning
@@ -269,7 +257,7 @@ def test_event_cached_run64_equals_the_scalar_steps_and_stops_where_a_lane_canno
         want_bad, words = 0, []
         for j in range(count):  # the scalar steps
             phi = (np.float64(n0 + j) + 0.5 - t_a) * inv
-            w = w - np.minimum((g * (a + d * phi) + o) * e, cap)
+            w = w - (level if static else np.minimum((g * (a + d * phi) + o) * e, cap))
             fired = w <= 0.0
             take = fired & (w >= lw)
             new = gn if zero else np.maximum(w + gn, floor * e)
@@ -303,27 +291,12 @@ def test_advance_cycles64_moves_need_and_counts_cycles_on_the_masked_lanes_only(
     np.testing.assert_array_equal(cycle, want_cycle)
 
 
-@njit(cache=False)
-def _masked_move(mask, dst, src):
-    masked_move64(mask, dst, src)
-
-
-def test_masked_move64_moves_the_masked_lanes_only():
-    rng = np.random.default_rng(3)
-    dst, src = rng.random(64), rng.random(64)
-    mask = int(rng.integers(0, 2**63)) * 2 + 1
-    sel = np.array([(mask >> k) & 1 for k in range(64)], bool)
-    want = np.where(sel, src, dst)
-    _masked_move(np.uint64(mask), dst, src)
-    np.testing.assert_array_equal(dst, want)
-
-
 def test_merged_lanes_are_stored_whole_not_as_masked_stores():
-    """:func:`masked_move64` and :func:`advance_cycles64` store whole vectors:
+    """:func:`advance_cycles64` stores whole vectors:
     a load from the bytes of a masked store waits until that store reaches the
     cache, and the scalar loads that follow them stalled (the AVX-512 form
     ``vmovupd %zmm, (mem){%k}`` must not appear)."""
-    asm = "".join(_masked_move.inspect_asm().values()) + "".join(_advance.inspect_asm().values())
+    asm = "".join(_advance.inspect_asm().values())
     assert "vmovupd" in asm or "vmovapd" in asm or "movupd" in asm  # the stores are there
     assert not re.search(r"vmov[au]p[sd]\s+%zmm\d+,\s*[^,\s]*\(%\w+[^)]*\)\{%k", asm)
 
