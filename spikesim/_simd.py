@@ -197,12 +197,17 @@ def _zero_reset_step(context, builder, old, inc):
     masks first, more than the seven mask registers a masked operation can
     name, and the spilled ones went through memory on the loop's dependency
     chain.  Measured on a 1000 × 1000 stream: 0.97–0.99× modulo's
-    throughput, against 0.78× before."""
+    throughput, against 0.78× before.  Without AVX-512 the carry is found as
+    modulo's (``old + inc < old``) and the sum then cleared: on an AVX2 host
+    (no unsigned compare, no masked add) 0.83× modulo's throughput against
+    0.74× with the compare before the add (static, 4096 readouts in
+    512-readout chunks, median of 5)."""
+    if not _avx512(context):  # the carry as modulo's, then cleared
+        total = builder.add(old, inc)
+        carry = builder.icmp_unsigned("<", total, old)
+        new = builder.select(carry, ir.Constant(old.type, None), total)
+        return new, _mask_word(context, builder, carry)
     limit = builder.not_(inc)  # the largest accumulator that does not carry
-    if not _avx512(context):
-        keep = builder.icmp_unsigned("<=", old, limit)
-        new = builder.select(keep, builder.add(old, inc), ir.Constant(old.type, None))
-        return new, builder.not_(builder.bitcast(keep, ir.IntType(LANES)))
     parts = []
     word = None
     for k in range(LANES // 8):
