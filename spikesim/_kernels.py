@@ -33,7 +33,9 @@ Model (docs/model.md; Dong et al., AAAI 2024, eq. 1):
   ``Λ = Σ E·q_n`` (draws keyed by (stream, pixel, cycle)); per readout the
   block only subtracts ``E·q_n`` from each lane's wait and takes the firing
   lanes' next waits from a per-lane cache of draws made ahead, so the work is
-  per spike.  Its state is the float64 ``aux`` array, not the fixed point.
+  per spike; on runs of constant radiance it goes from firing to firing with
+  no work per readout at all (``spikesim._event.event_direct``, exact).  Its
+  state is the float64 ``aux`` array, not the fixed point.
 * Charge loss at reset: the readout after a firing collects ``(1 − f)·q_n``.
 
 Work is split in blocks of 64 pixels of one row (8 packed bytes) run in
