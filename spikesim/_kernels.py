@@ -459,7 +459,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     ``scratch_f`` (``SCRATCH_F``, 64) float64 and ``scratch_u`` (``SCRATCH_U``,
     64) uint64 are the caller's work rows (allocated once per task, not per
     block); the event sampler's rows come last, its lane keys already made
-    (:func:`spikesim._event.event_lane_keys`).
+    (:func:`spikesim._event.event_lane_keys`); ``words`` (uint64, at least
+    the chunk's readouts) takes a run's spike words from
+    :func:`spikesim._event.event_direct`.
     ``model.fast_ok``: no per-readout noise; ``model.paper_fast_ok``: paper-mode
     noise only.  Either path is taken for a run only where every lane's whole part
     is 0 and every charge < 1 θ, where the three reset modes reduce to a
@@ -739,8 +741,8 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
                   words):
     """Row ``y`` of :func:`simulate_chunk` (same arguments), block by block,
     with the task's contiguous work rows (``scratch_f``, ``scratch_u``, see
-    :func:`_block_runs`), the block's event state ``ev`` (4, 64), accumulator ``f``, ``w``
-    and initial fraction ``f0`` (64))."""
+    :func:`_block_runs`, and ``words``), the block's event state ``ev`` (4, 64),
+    accumulator ``f``, ``w`` and initial fraction ``f0`` (64))."""
     nblk = frames.shape[1]
     use_aux = model.event or model.loss > 0.0
     frac = state.frac
