@@ -199,9 +199,10 @@ def _zero_reset_step(context, builder, old, inc):
     chain.  Measured on a 1000 × 1000 stream: 0.97–0.99× modulo's
     throughput, against 0.78× before.  Without AVX-512 the carry is found as
     modulo's (``old + inc < old``) and the sum then cleared: on an AVX2 host
-    (no unsigned compare, no masked add) 0.83× modulo's throughput against
-    0.74× with the compare before the add (static, 4096 readouts in
-    512-readout chunks, median of 5)."""
+    (no unsigned compare, no masked add) 0.82× [0.66–0.83] and 0.82×
+    [0.74–1.04] of modulo's throughput against 0.74× [0.73–0.80] and 0.73×
+    [0.68–0.73] with the compare before the add (static, 4096 readouts in
+    512-readout chunks, 5 alternating rounds, two processes per build)."""
     if not _avx512(context):  # the carry as modulo's, then cleared
         total = builder.add(old, inc)
         carry = builder.icmp_unsigned("<", total, old)
