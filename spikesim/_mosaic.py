@@ -8,7 +8,7 @@ from numba import njit, prange
 
 from spikesim._kernels import BLOCK
 
-__all__ = ["mosaic_grey_into", "mosaic_into"]
+__all__ = ["grey_to_rgb_into", "mosaic_grey_into", "mosaic_into"]
 
 _opts = dict(cache=True, error_model="numpy", boundscheck=False)
 
@@ -79,3 +79,19 @@ def mosaic_grey_into(grey, out, k):
                 dst[lane] = row[x0 + lane]
         bad += row_bad
     return bad
+
+
+@njit(parallel=True, **_opts)
+def grey_to_rgb_into(grey, out):
+    """Grey radiance (H, W) into the three channels of ``out`` (H, W, 3),
+    C-contiguous float32 both: a grey scene's ground-truth frame.  NumPy's
+    broadcast copy (``out[:] = grey[:, :, None]``) took 5.5 ms at 1000×1000,
+    this 0.5–1 ms."""
+    for y in prange(grey.shape[0]):
+        row = grey[y]
+        dst = out[y]
+        for x in range(grey.shape[1]):
+            v = row[x]
+            dst[x, 0] = v
+            dst[x, 1] = v
+            dst[x, 2] = v

@@ -236,14 +236,14 @@ class SimulationRun:
         """Ground-truth radiance (K, H, W, 3) at the requested readouts in ``[n0, n1)``."""
         clock = self.sensor.clock_hz
         sel = self.gt_readouts[(self.gt_readouts >= n0) & (self.gt_readouts < n1)]
-        gt = np.zeros((len(sel), self.sensor.height, self.sensor.width, 3), np.float32)
-        for i, g in enumerate(sel.tolist()):
+        gt = np.empty((len(sel), self.sensor.height, self.sensor.width, 3), np.float32)
+        for i, g in enumerate(sel.tolist()):  # (every frame is written)
             t = (g + 0.5) / clock
             grey = self._grey_at(t)
             if grey is not None:
                 if grey is not self._checked:
                     validate_grey(grey, f"scene.grey(t={t:.6g})")
-                gt[i] = grey[:, :, None]
+                _mosaic.grey_to_rgb_into(grey, gt[i])
                 continue
             rad = self.scene.radiance(t)
             if rad is self._checked:  # the read-only frame the key frames just checked
@@ -537,5 +537,6 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
     for chunk in run._chunks(into=(packed, clean)):  # the kernel writes into packed, clean
         gts.append(chunk.gt)
         idx.append(chunk.gt_index)
-    gt = np.concatenate(gts) if gts else np.zeros((0, h, sensor.width, 3), np.float32)
+    gts = [g for g in gts if len(g)] or [np.zeros((0, h, sensor.width, 3), np.float32)]
+    gt = gts[0] if len(gts) == 1 else np.concatenate(gts)  # (each chunk's is its own array)
     return SpikeStream(packed, run.meta, clean, gt, np.concatenate(idx).astype(np.int64))

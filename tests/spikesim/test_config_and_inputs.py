@@ -118,6 +118,24 @@ def test_odd_sizes(shape, pattern):
     assert np.all(np.abs(rate - expected) <= 1 / 50 + 1e-9)
 
 
+@pytest.mark.parametrize("chunk", [None, 7])
+def test_grey_ground_truth_is_the_image_in_every_channel(chunk):
+    """A grey scene's ground truth is written by its own kernel (not NumPy's
+    broadcast copy): the image in each channel of each requested readout,
+    in one chunk or several, and an empty array when none is asked for."""
+    img = np.random.default_rng(3).random((5, 65)).astype(np.float32)
+    sensor = ss.Sensor(height=5, width=65, cfa=None)
+    st = ss.simulate(ss.scenes.Static(img), sensor, 30, gt_readouts=[29, 0, 12],
+                     chunk_readouts=chunk)
+    assert st.gt.shape == (3, 5, 65, 3) and st.gt.dtype == np.float32
+    assert st.gt.flags.c_contiguous and list(st.gt_index) == [0, 12, 29]
+    for k in range(3):
+        for c in range(3):
+            np.testing.assert_array_equal(st.gt[k, :, :, c], img)
+    none = ss.simulate(ss.scenes.Static(img), sensor, 30, gt_readouts=[], chunk_readouts=chunk)
+    assert none.gt.shape == (0, 5, 65, 3) and len(none.gt_index) == 0
+
+
 def test_meta_records_full_configuration():
     sensor = ss.Sensor.preset("sjdd-gpn", height=4, width=10)
     st = ss.simulate(ss.scenes.Static(np.ones((4, 10))), sensor, 5, seed=77, clean_twin=True)

@@ -52,3 +52,46 @@ def test_kernels_build_without_avx512_and_give_the_same_bits(tmp_path):
     here = _digest(dict(os.environ))
     there = _digest(dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **HASWELL))
     assert len(here) == 64 and there == here
+
+
+LOOP_ASM = """
+import re
+import numpy as np
+from numba import njit
+from spikesim._simd import carry_run64, linear_carry_run64
+
+@njit(cache=False)
+def runs(acc, inc, x, out, count):
+    carry_run64(acc, inc, out, 0, 8, 8, count)
+    linear_carry_run64(acc, x, x, x, x, 0, 0.0, 1.0, out, 0, 8, 8, count)
+
+x = np.full(64, 0.25)
+runs(np.zeros(64, np.uint64), np.ones(64, np.uint64), x, np.zeros(64, np.uint8), 1)
+lines = "".join(runs.inspect_asm().values()).splitlines()
+for i, line in enumerate(lines):  # each readout loop: from its block's label to its back edge
+    if "vpmovmskb" in line:
+        start = max(j for j in range(i) if re.match(r"\\.LBB\\d+_\\d+:", lines[j]))
+        label = lines[start].rstrip(":")
+        end = next(j for j in range(i, len(lines)) if re.search(r"\\bj\\w+\\s+" + re.escape(label) + r"$", lines[j]))
+        print(" ".join(line.split()[0] for line in lines[start + 1:end] if line.startswith("\\t")))
+"""
+
+
+@pytest.mark.slow
+def test_avx2_readout_loops_pack_their_words_without_cross_lane_permutes(tmp_path):
+    """Built for an AVX2 CPU, the noise-free readout loops hold their lanes in
+    the order the packs leave them (``spikesim._simd._RunLanes``): each
+    readout's word takes blends, packs and two ``vpmovmskb``, no ``vpermq``
+    (LLVM's own lowering of the 64-bit mask used seven a readout, and the
+    loop ran twice as long), and the carry is one signed compare."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    done = subprocess.run([sys.executable, "-c", LOOP_ASM], capture_output=True, text=True,
+                          cwd=root, timeout=900,
+                          env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **HASWELL))
+    assert done.returncode == 0, done.stderr[-3000:]
+    loops = done.stdout.split("\n")[:-1]
+    assert len(loops) >= 2  # (a loop may be unrolled or split into copies)
+    for loop in loops:
+        ops = loop.split()
+        assert ops.count("vpmovmskb") == 2 and "vpblendd" in ops and "vpcmpgtq" in ops
+        assert "vpermq" not in ops and "vpxor" not in ops
