@@ -72,7 +72,8 @@ for i, line in enumerate(lines):  # each readout loop: from its block's label to
     if "vpmovmskb" in line:
         start = max(j for j in range(i) if re.match(r"\\.LBB\\d+_\\d+:", lines[j]))
         label = lines[start].rstrip(":")
-        end = next(j for j in range(i, len(lines)) if re.search(r"\\bj\\w+\\s+" + re.escape(label) + r"$", lines[j]))
+        back_edge = re.compile(r"\\bj\\w+\\s+" + re.escape(label) + "$")
+        end = next(j for j in range(i, len(lines)) if back_edge.search(lines[j]))
         print(" ".join(line.split()[0] for line in lines[start + 1:end] if line.startswith("\\t")))
 """
 
