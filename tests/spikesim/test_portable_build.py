@@ -68,9 +68,13 @@ def runs(acc, inc, x, out, count):
 x = np.full(64, 0.25)
 runs(np.zeros(64, np.uint64), np.ones(64, np.uint64), x, np.zeros(64, np.uint8), 1)
 lines = "".join(runs.inspect_asm().values()).splitlines()
+seen = set()
 for i, line in enumerate(lines):  # each readout loop: from its block's label to its back edge
     if "vpmovmskb" in line:
         start = max(j for j in range(i) if re.match(r"\\.LBB\\d+_\\d+:", lines[j]))
+        if start in seen:
+            continue
+        seen.add(start)
         label = lines[start].rstrip(":")
         back_edge = re.compile(r"\\bj\\w+\\s+" + re.escape(label) + "$")
         end = next(j for j in range(i, len(lines)) if back_edge.search(lines[j]))
