@@ -98,10 +98,10 @@ from spikesim.rng import (
 )
 
 BLOCK = 64  # pixels per block: one uint64 spike mask = 8 packed bytes
-#: Work rows per task: 14 float64 and 3 uint64 of the per-readout steps, then
+#: Work rows per task: 14 float64 and 2 uint64 of the per-readout steps, then
 #: the event sampler's (``spikesim._event.EV_WORK_F``, ``EV_WORK_U``).
 _EV_F0 = 14
-_EV_U0 = 3
+_EV_U0 = 2
 SCRATCH_F = _EV_F0 + EV_WORK_F
 SCRATCH_U = _EV_U0 + EV_WORK_U
 TWO64 = 2.0**64
@@ -235,20 +235,18 @@ def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, 
 
 
 @njit(inline="always", **_opts)
-def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, qf, zero):
+def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, zero):
     """Constant charge < 1 θ, empty whole part: a 64-lane integer add whose
     carry bits are the spikes, the whole run in one call with the accumulator
     in registers (:func:`spikesim._simd.carry_run64`; with ``zero`` reset the
     carrying lanes are cleared).  Modulo and subtract reset are the same step
-    here (the whole part stays 0).  ``frac`` is the block's contiguous state,
-    ``qf`` a scratch row."""
-    for lane in range(BLOCK):
-        qf[lane] = np.uint64(qconst[lane] * TWO64)
+    here (the whole part stays 0).  ``frac`` is the block's contiguous state;
+    the charges ``qconst`` are converted to 2⁻⁶⁴ θ units in the call."""
     first, stride, nbytes = _word_at(out, n0 - t_off, y, blk)
     if zero:
-        carry_run64_zero(frac, qf, out, first, stride, nbytes, n1 - n0)
+        carry_run64_zero(frac, qconst, out, first, stride, nbytes, n1 - n0)
     else:
-        carry_run64(frac, qf, out, first, stride, nbytes, n1 - n0)
+        carry_run64(frac, qconst, out, first, stride, nbytes, n1 - n0)
 
 
 @njit(inline="always", **_opts)
@@ -483,9 +481,8 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     offset = scratch_f[11]
     electrons = scratch_f[12]
     charge_sd = scratch_f[13]
-    qbuf = scratch_u[0]
-    bbuf = scratch_u[1]
-    pkeys = scratch_u[2]
+    bbuf = scratch_u[0]
+    pkeys = scratch_u[1]
     ev_f = scratch_f[_EV_F0:]
     ev_u = scratch_u[_EV_U0:]
     _charge_rows(model, y, x0, gain, offset)
@@ -593,7 +590,7 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
         if use_fast and static:
             for lane in range(BLOCK):
                 ibuf[lane] = gain[lane] * (ia[lane] + di[lane] * 0.0) + offset[lane]
-            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, qbuf, zero)
+            _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, zero)
         elif use_fast:
             _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk, zero)
         elif paper_fast_ok and fits and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset,

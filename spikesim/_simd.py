@@ -90,6 +90,12 @@ def _part(builder, vec, k):
     return builder.shuffle_vector(vec, ir.Constant(vec.type, ir.Undefined), lanes)
 
 
+def _quarter(builder, vec, k):
+    """Lanes ``[4k, 4k + 4)`` of a 64-lane vector (one 256-bit register of 64-bit lanes)."""
+    lanes = ir.Constant(ir.VectorType(ir.IntType(32), 4), [4 * k + j for j in range(4)])
+    return builder.shuffle_vector(vec, ir.Constant(vec.type, ir.Undefined), lanes)
+
+
 def _join(builder, parts):
     """The 64-lane vector of eight 8-lane ``parts`` (the inverse of :func:`_part`)."""
     while len(parts) > 1:
@@ -255,14 +261,16 @@ class _RunLanes:
         lane ``k`` of the block at bit ``k``."""
         if not self.packs:
             return _mask_word(self.context, self.builder, mask)
+        full = self.builder.sext(mask, ir.VectorType(ir.IntType(64), LANES))
+        return self._packed([_quarter(self.builder, full, k) for k in range(LANES // 4)])
+
+    def _packed(self, parts):
+        """The word of sixteen 4-lane masks (<4 x i64>, all ones or zero, in
+        the loop's order): blends, packs and two ``vpmovmskb``."""
         b = self.builder
         i16, i32, i64 = ir.IntType(16), ir.IntType(32), ir.IntType(64)
         v8 = ir.VectorType(i32, 8)
-        full = b.sext(mask, ir.VectorType(i64, LANES))
-        parts = [b.bitcast(b.shuffle_vector(full, ir.Constant(full.type, ir.Undefined),
-                                            ir.Constant(ir.VectorType(i32, 4),
-                                                        list(range(4 * k, 4 * k + 4)))), v8)
-                 for k in range(LANES // 4)]
+        parts = [b.bitcast(x, v8) for x in parts]
         # one dword per lane (both halves of a 64-bit mask are equal): vpblendd
         odd = ir.Constant(v8, [0, 9, 2, 11, 4, 13, 6, 15])
         dwords = [b.shuffle_vector(x, y, odd) for x, y in zip(parts[::2], parts[1::2],
@@ -273,6 +281,33 @@ class _RunLanes:
                   for x, y in zip(words[::2], words[1::2], strict=True)]
         low, high = (b.zext(self._x86("llvm.x86.avx2.pmovmskb", i32, x), i64) for x in bytes_)
         return b.or_(low, b.shl(high, i64(32)))
+
+    def fixed(self, q):
+        """``fptoui(q)`` of 64 lanes of float64 in [0, 2⁶⁴) (the truncated
+        integer), exactly.  AVX2 has no vector conversion of float64 to a
+        64-bit integer, and LLVM's fallback converts lane by lane in scalar
+        code; the pack path builds the integer from the bits instead: the
+        53-bit significand with its implicit bit, shifted left by
+        ``exponent − 52`` (at most 11 below 2⁶⁴) or right by ``52 − exponent``
+        (clamped to 63, which leaves 0 for every value below 1, 0 included):
+        variable shifts (``vpsllvq``/``vpsrlvq``) and a blend, about 10 vector
+        instructions for 4 lanes."""
+        b = self.builder
+        uvec = ir.VectorType(ir.IntType(64), LANES)
+        if not self.packs:
+            return b.fptoui(q, uvec)
+
+        def splat(v):
+            return _splat(b, uvec, ir.IntType(64)(v))
+
+        bits = b.bitcast(q, uvec)
+        significand = b.or_(b.and_(bits, splat((1 << 52) - 1)), splat(1 << 52))
+        up = b.sub(b.lshr(bits, splat(52)), splat(1075))  # exponent − 52 (the sign bit is 0)
+        is_up = b.icmp_signed(">=", up, splat(0))
+        down = b.sub(splat(0), up)
+        down = b.select(b.icmp_unsigned("<", down, splat(63)), down, splat(63))
+        left = b.shl(significand, b.select(is_up, up, splat(0)))
+        return b.select(is_up, left, b.lshr(significand, down))
 
     def _x86(self, name, ret, *args):
         fn = self.builder.module.declare_intrinsic(
@@ -369,15 +404,20 @@ def store_word(typingctx, out, index, word, nbytes):
 def _carry_run(zero_reset):
     @intrinsic
     def carry_run(typingctx, acc, inc, out, first, stride, nbytes, count):
-        if not (_is_u64_array(acc) and _is_u64_array(inc) and _is_bytes(out)
-                and _all_int(first, stride, nbytes, count)):
+        if not (_is_u64_array(acc) and (_is_u64_array(inc) or _is_f64_array(inc))
+                and _is_bytes(out) and _all_int(first, stride, nbytes, count)):
             return None
 
         def codegen(context, builder, sig, args):
             vec = ir.VectorType(ir.IntType(64), LANES)
             zero = ir.IntType(64)(0)
             lanes = _RunLanes(context, builder)
-            inc_v = lanes.load(_lanes_ptr(context, builder, sig, args, 1, zero, vec))
+            if _is_f64_array(sig.args[1]):  # charges: fptoui(charge·2⁶⁴)
+                fvec = ir.VectorType(ir.DoubleType(), LANES)
+                charge = lanes.load(_lanes_ptr(context, builder, sig, args, 1, zero, fvec))
+                inc_v = lanes.fixed(builder.fmul(charge, ir.Constant(fvec, [2.0**64] * LANES)))
+            else:
+                inc_v = lanes.load(_lanes_ptr(context, builder, sig, args, 1, zero, vec))
             count_ = context.cast(builder, args[6], sig.args[6], types.intp)
             _run_loop(context, builder, lanes,
                       _lanes_ptr(context, builder, sig, args, 0, zero, vec),
@@ -421,7 +461,7 @@ def _linear_carry_run(zero_reset):
                 phi = builder.fmul(builder.fsub(builder.fadd(n, half), t_a_), inv_)
                 level_now = builder.fadd(a, builder.fmul(d, _splat(builder, fvec, phi)))
                 q = builder.fadd(builder.fmul(g, level_now), o)
-                return builder.fptoui(builder.fmul(q, scale), uvec)
+                return lanes.fixed(builder.fmul(q, scale))
 
             count_ = context.cast(builder, args[12], sig.args[12], types.intp)
             _run_loop(context, builder, lanes,
@@ -463,7 +503,8 @@ def _paper_carry_add(zero_reset):
 
 carry_run64 = _carry_run(False)
 carry_run64.__doc__ = """``count`` readouts of a constant charge for a 64-lane block:
-    ``acc[:64] += inc[:64]`` (uint64, wrapping) per readout, the accumulator
+    ``acc[:64] += inc[:64]`` (uint64, wrapping; a float64 ``inc`` holds charges
+    in [0, 1) threshold, added as ``fptoui(charge·2⁶⁴)``) per readout, the accumulator
     held in registers throughout, and readout ``k``'s 64 carry-out bits
     (lane ``j`` → bit ``j``) stored as :func:`store_word` does, at byte
     ``first + k·stride`` of the C-contiguous uint8 ``out`` (flat index), its

@@ -153,6 +153,24 @@ def test_carry_run64_wraps_and_orders_bits_like_the_packed_layout():
                        _runs(a, inc, out, f, s, nb, c, zero), acc, [inc] * count, zero)
 
 
+def test_carry_run64_converts_float_charges_exactly_as_fptoui():
+    """Charges given as float64 are added as ``fptoui(charge·2⁶⁴)``, bit for
+    bit: on AVX2 the integer is built from the float's bits (no vector
+    conversion exists there), so every exponent is tried, with 0, values
+    just below powers of two and the largest charge below 1."""
+    rng = np.random.default_rng(11)
+    powers = 2.0 ** -rng.integers(0, 80, 64)
+    cases = [rng.random(64), rng.random(64) * 2.0**-40, np.zeros(64), np.full(64, 1 - 2**-53),
+             powers, powers * (1 + rng.random(64)) / 2, np.nextafter(powers, 0.0)]
+    for charge in cases:
+        charge = np.minimum(charge, 1 - 2**-53)
+        for count in (1, 3):
+            acc, out = np.zeros(64, np.uint64), np.zeros(8 * count, np.uint8)
+            _runs(acc, charge, out, 0, 8, 8, count, False)
+            want = (charge * 2.0**64).astype(np.uint64) * np.uint64(count)
+            np.testing.assert_array_equal(acc, want)
+
+
 def test_linear_carry_run64_equals_the_scalar_formula():
     """Readout ``n0 + k`` gets ``(g·(a + d·phi) + o)·2⁶⁴`` truncated, with
     ``phi = (n + ½ − t_a)·inv`` evaluated in this order (float64)."""
