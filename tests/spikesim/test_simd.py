@@ -128,7 +128,7 @@ def _check_run(run, acc, charges, zero):
     else, for whole and partial words at unaligned places."""
     count = len(charges)
     masks, want = _reference_run(acc, charges, zero)
-    for first, stride, nbytes in ((3, 13, 8), (0, 8, 8), (5, 11, 5), (1, 9, 1)):
+    for first, stride, nbytes in ((3, 13, 8), (0, 8, 8), (5, 11, 5), (2, 10, 4), (1, 9, 1)):
         out = np.full(count * stride + first + 8, 7, np.uint8)
         got = acc.copy()
         run(got, out, first, stride, nbytes, count)
