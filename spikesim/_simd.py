@@ -187,16 +187,19 @@ def _out_bytes(context, builder, sig, args, k):
     return data, first, stride, nbytes
 
 
-def _store_word(builder, data, index, word, nbytes):
-    """Store the low ``nbytes`` (1 to 8) bytes of the i64 ``word`` at byte
-    ``index`` of ``data``, lowest byte first (the little-endian layout): one
-    unaligned 8-byte store, or byte by byte for the last, partial word of a row
-    (whose other bytes belong to the next row)."""
-    i8, i64 = ir.IntType(8), ir.IntType(64)
+def _store_word(builder, data, index, word, nbytes, width=8):
+    """Store the low ``nbytes`` (up to ``width``, 8 or 4; none when ≤ 0) bytes
+    of the i64 ``word`` at byte ``index`` of ``data``, lowest byte first (the
+    little-endian layout): one unaligned ``width``-byte store, or byte by byte
+    for the last, partial word of a row (whose other bytes belong to the next
+    row)."""
+    i8, i64, full_int = ir.IntType(8), ir.IntType(64), ir.IntType(8 * width)
     ptr = builder.gep(data, [index])
-    with builder.if_else(builder.icmp_signed("==", nbytes, i64(8)), likely=True) as (full, part):
+    with builder.if_else(builder.icmp_signed("==", nbytes, i64(width)),
+                         likely=True) as (full, part):
         with full:
-            builder.store(word, builder.bitcast(ptr, i64.as_pointer()), align=1)
+            value = word if width == 8 else builder.trunc(word, full_int)
+            builder.store(value, builder.bitcast(ptr, full_int.as_pointer()), align=1)
         with part:
             with cgutils.for_range(builder, nbytes) as loop:
                 byte = builder.trunc(builder.lshr(word, builder.mul(loop.index, i64(8))), i8)
@@ -263,9 +266,9 @@ class _RunLanes:
         if not self.packs:
             return _mask_word(self.context, self.builder, mask)
         full = self.builder.sext(mask, ir.VectorType(ir.IntType(64), LANES))
-        return self._packed([_quarter(self.builder, full, k) for k in range(LANES // 4)])
+        return self.word_of_parts([_quarter(self.builder, full, k) for k in range(LANES // 4)])
 
-    def _packed(self, parts):
+    def word_of_parts(self, parts):
         """The word of sixteen (or eight) 4-lane masks (<4 x i64>, all ones or
         zero, in the loop's order): blends, packs and two ``vpmovmskb`` (one)."""
         b = self.builder
@@ -370,29 +373,16 @@ def _zero_halves_loop(context, builder, lanes, acc_ptr, count, out, inc):
         with cgutils.for_range(builder, count) as loop:
             old = builder.load(slot)
             total = builder.add(old, inc_h)
-            carry = builder.icmp_signed("<", total, old)
+            carry = lanes.carry(old, total)
             builder.store(builder.select(carry, bias_h, total), slot)
             full = builder.sext(carry, ir.VectorType(i64, 32))
-            word = lanes._packed([_quarter(builder, full, k) for k in range(8)])
+            word = lanes.word_of_parts([_quarter(builder, full, k) for k in range(8)])
             index = builder.add(builder.add(first, builder.mul(loop.index, stride)), i64(4 * h))
-            _store_bytes4(builder, data, index, word, n)
+            _store_word(builder, data, index, word, n, width=4)
         halves.append(builder.load(slot))
     joined = builder.shuffle_vector(halves[0], halves[1],
                                     ir.Constant(ir.VectorType(i32, 64), list(range(64))))
     lanes.store_acc(acc_ptr, joined)
-
-
-def _store_bytes4(builder, data, index, word, n):
-    """Store the low ``n`` (≤ 4; none when ≤ 0) bytes of ``word`` at byte ``index``."""
-    i8, i32, i64 = ir.IntType(8), ir.IntType(32), ir.IntType(64)
-    ptr = builder.gep(data, [index])
-    with builder.if_else(builder.icmp_signed("==", n, i64(4)), likely=True) as (full, part):
-        with full:
-            builder.store(builder.trunc(word, i32), builder.bitcast(ptr, i32.as_pointer()), align=1)
-        with part:
-            with cgutils.for_range(builder, n) as loop:
-                byte = builder.trunc(builder.lshr(word, builder.mul(loop.index, i64(8))), i8)
-                builder.store(byte, builder.gep(ptr, [loop.index]), align=1)
 
 
 def _zero_reset_step(context, builder, lanes, old, inc):
