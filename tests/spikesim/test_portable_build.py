@@ -58,13 +58,11 @@ LOOP_ASM = """
 import re
 import numpy as np
 from numba import njit
-from spikesim._simd import carry_run64, carry_run64_zero, linear_carry_run64
+from spikesim._simd import carry_run64, carry_run64_zero, countdown_run32, linear_carry_run64
 
 @njit(cache=False)
 def runs(acc, inc, x, out, count):
-    carry_run64(acc, inc, out, 0, 8, 8, count)
-    carry_run64_zero(acc, inc, out, 0, 8, 8, count)
-    linear_carry_run64(acc, x, x, x, x, 0, 0.0, 1.0, out, 0, 8, 8, count)
+    CALLS
 
 x = np.full(64, 0.25)
 runs(np.zeros(64, np.uint64), np.ones(64, np.uint64), x, np.zeros(64, np.uint8), 1)
@@ -79,8 +77,24 @@ for i, line in enumerate(lines):  # each readout loop: from its block's label to
         label = lines[start].rstrip(":")
         back_edge = re.compile(r"\\bj\\w+\\s+" + re.escape(label) + "$")
         end = next(j for j in range(i, len(lines)) if back_edge.search(lines[j]))
-        print(" ".join(line.split()[0] for line in lines[start + 1:end] if line.startswith("\\t")))
+        print(" ".join(line.split()[0] + ("@stack" if "(%rsp)" in line else "")
+                       for line in lines[start + 1:end] if line.startswith("\\t")))
 """
+CARRY_CALLS = """carry_run64(acc, inc, out, 0, 8, 8, count)
+    carry_run64_zero(acc, inc, out, 0, 8, 8, count)
+    linear_carry_run64(acc, x, x, x, x, 0, 0.0, 1.0, out, 0, 8, 8, count)"""
+
+
+def _haswell_loops(tmp_path, calls):
+    """The instructions of each readout loop (``@stack``: with a stack operand)
+    of ``calls`` (the body of ``runs(acc, inc, x, out, count)``) built for a
+    Haswell CPU in a fresh cache."""
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    done = subprocess.run([sys.executable, "-c", LOOP_ASM.replace("CALLS", calls)],
+                          capture_output=True, text=True, cwd=root, timeout=900,
+                          env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **HASWELL))
+    assert done.returncode == 0, done.stderr[-3000:]
+    return [loop.split() for loop in done.stdout.split("\n")[:-1]]
 
 
 @pytest.mark.slow
@@ -92,15 +106,25 @@ def test_avx2_readout_loops_pack_their_words_without_cross_lane_permutes(tmp_pat
     lowering of the 64-bit mask used seven a readout, and the loop ran twice
     as long), the carry is one signed compare, and the linear loop's charges
     become fixed point with shifts, not compares."""
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    done = subprocess.run([sys.executable, "-c", LOOP_ASM], capture_output=True, text=True,
-                          cwd=root, timeout=900,
-                          env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **HASWELL))
-    assert done.returncode == 0, done.stderr[-3000:]
-    loops = done.stdout.split("\n")[:-1]
-    masks = sorted(loop.split().count("vpmovmskb") for loop in loops)
+    loops = _haswell_loops(tmp_path, CARRY_CALLS)
+    masks = sorted(ops.count("vpmovmskb") for ops in loops)
     assert masks[:2] == [1, 1] and masks[2:] and set(masks[2:]) == {2}  # 2 halves, 2 whole
-    for loop in loops:
-        ops = loop.split()
+    for ops in loops:
         assert "vpblendd" in ops and "vpcmpgtq" in ops
         assert "vpermq" not in ops and "vpxor" not in ops
+
+
+@pytest.mark.slow
+def test_avx2_countdown_loop_takes_spikes_and_resets_from_sign_bits(tmp_path):
+    """Built for an AVX2 CPU, zero reset's countdown loop
+    (``spikesim._simd.countdown_run32``) keeps its 64 int32 counters in eight
+    registers (no store to the stack), decrements them, packs their sign bits
+    into the word (four ``vpackssdw``, two ``vpacksswb``, two ``vpmovmskb``)
+    and resets the fired lanes with ``vblendvps`` on the same sign bits: no
+    compare, no cross-lane permute."""
+    (ops,) = _haswell_loops(tmp_path, "countdown_run32(acc, inc, out, 0, 8, 8, count)")
+    counts = {op: ops.count(op) for op in ("vpaddd", "vpackssdw", "vpacksswb", "vpmovmskb")}
+    assert counts == {"vpaddd": 8, "vpackssdw": 4, "vpacksswb": 2, "vpmovmskb": 2}
+    assert sum(op.startswith("vblendvps") for op in ops) == 8
+    assert not any(op.startswith(("vpcmp", "vpermq", "vpxor")) for op in ops)
+    assert not any(op.startswith("vmov") and op.endswith("@stack") for op in ops)

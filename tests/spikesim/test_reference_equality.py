@@ -111,3 +111,45 @@ def test_temporal_threshold_noise_matches_reference(reset):
                       noise=ss.noise.PhysicalNoise(shot_noise=False,
                                                    temporal_threshold_noise=0.0))
     assert not np.array_equal(got, ss.simulate(scene, quiet, 60, seed=2).packed)
+
+
+
+@pytest.mark.parametrize("reset", RESETS)
+@pytest.mark.parametrize("fixed_pattern", [False, True], ids=["ideal", "fixed-pattern"])
+@pytest.mark.parametrize("kind", ["static", "after the last key"])
+def test_holds_match_reference_where_blocks_fall_back(reset, fixed_pattern, kind):
+    """A chunk of one hold (a static scene's, or any after the last key frame)
+    runs a noise-free block without the general block function when its
+    charges are below 1 θ and its whole part is 0.  Here one block's charges
+    reach 3 θ, another's in one lane; after the last key the light drops below
+    1 θ everywhere while subtract still holds the bright readouts' backlog.
+    Chunks of 1, 7, 140 and all readouts (zero reset counts runs of 128
+    readouts and more down, ``spikesim._zero_period``), and the clean twin of
+    a physical stream, which runs the same holds after the noisy stream's
+    block with the same work rows (the noisy bits must not change)."""
+    rng = np.random.default_rng(11)
+    h, w, n, clock = 5, 200, 150, 1000.0
+    img = rng.random((h, w, 3)) * 0.9
+    bright = img.copy()
+    bright[:, :64] *= 3.4  # block 0: charges up to ~3 θ
+    bright[2, 100] = 2.5  # block 1: one bright lane
+    if kind == "static":
+        scene = ss.scenes.Static(bright.astype(np.float32))
+    else:  # bright until readout 5, dim after
+        scene = Keyframes(np.array([0.0, 5.0]) / clock,
+                          [bright.astype(np.float32), img.astype(np.float32)])
+    noise = (ss.noise.PhysicalNoise(shot_noise=False, temporal_threshold_noise=0.0,
+                                    hot_pixel_fraction=0.02) if fixed_pattern else None)
+    sensor = ss.Sensor(height=h, width=w, cfa="RGGB", clock_hz=clock, reset=reset, noise=noise)
+    want = reference_simulate(scene, sensor, n, seed=5)
+    noisy = ss.Sensor(height=h, width=w, cfa="RGGB", clock_hz=clock, reset=reset,
+                      noise=ss.noise.PhysicalNoise())  # shot noise per spike
+    for chunk in (1, 7, 140, n):
+        got = ss.simulate(scene, sensor, n, seed=5, chunk_readouts=chunk).packed
+        np.testing.assert_array_equal(got, want)
+        if not fixed_pattern:  # the twin shares the noisy stream's work rows
+            twin = ss.simulate(scene, noisy, n, seed=5, chunk_readouts=chunk, clean_twin=True)
+            np.testing.assert_array_equal(twin.clean_packed, want)
+            alone = ss.simulate(scene, noisy, n, seed=5, chunk_readouts=chunk).packed
+            np.testing.assert_array_equal(twin.packed, alone)
+    assert ss.bits.unpack(want, w)[:, :, 64:].mean() < 0.9  # the dim blocks do not saturate

@@ -26,6 +26,7 @@ from spikesim._simd import (
     prefer_wide_vectors,
     store_word,
 )
+from spikesim._zero_period import COUNT_CLAMP, _quotient, zero_reset_run
 
 TWO64 = 2.0**64
 
@@ -169,6 +170,65 @@ def test_carry_run64_converts_float_charges_exactly_as_fptoui():
             _runs(acc, charge, out, 0, 8, 8, count, False)
             want = (charge * 2.0**64).astype(np.uint64) * np.uint64(count)
             np.testing.assert_array_equal(acc, want)
+
+
+@njit
+def _quotients(x, inc):
+    out = np.empty(x.size, np.uint64)
+    for k in range(x.size):
+        out[k] = _quotient(x[k], inc[k], 2.0**64 / np.float64(inc[k]))
+    return out
+
+
+def test_period_quotients_are_exact_or_clamped():
+    """``⌊x / inc⌋`` from a float estimate and one exact correction: at
+    quotients just at, above and below whole numbers (``x = m·inc + r``,
+    ``r`` ∈ {0, 1, inc − 1}), for divisors from 2³⁴ (smaller ones are divided
+    in integers) to 2⁶⁴ − 1; the quotient 2³⁰ − 1 may clamp to COUNT_CLAMP
+    (its estimate can round up to 2³⁰)."""
+    rng = np.random.default_rng(5)
+    cases = []
+    for _ in range(4000):
+        inc = max(int(rng.integers(1, 2**64, dtype=np.uint64)) >> int(rng.integers(0, 30)),
+                  2**34)
+        m = min(int(rng.integers(0, 2**31)) >> int(rng.integers(0, 31)), (2**64 - 1) // inc)
+        for r in (0, 1, inc - 1):
+            if r < inc and m * inc + r < 2**64:
+                cases.append((m * inc + r, inc))
+    cases += [(2**64 - 1, 2**64 - 1), (0, 2**34 + 7), (2**64 - 1, 2**34), (2**64 - 1, 2**34 + 3),
+              (2**64 - 2**34, 2**34), (2**64 - 2**34 - 1, 2**34)]
+    x = np.array([c[0] for c in cases], np.uint64)
+    inc = np.array([c[1] for c in cases], np.uint64)
+    got = _quotients(x, inc)
+    want = np.array([a // b for a, b in cases], dtype=object)
+    exact, edge = want < 2**30 - 1, want == 2**30 - 1  # the estimate may round up to 2³⁰
+    np.testing.assert_array_equal(got[exact].astype(object), want[exact])
+    assert np.all((got[edge] == COUNT_CLAMP) | (got[edge] == 2**30 - 1)) and edge.sum() >= 2
+
+
+def test_zero_reset_counted_down_equals_add_and_clear():
+    """A static zero-reset run as a periodic count (``spikesim._zero_period``)
+    gives the add-and-clear loop's spike words and final accumulator, bit for
+    bit: charges from 0 and 2⁻⁶⁰ (a lane that fires at most once) to just
+    below 1 θ, powers of two (periods that divide 2⁶⁴), accumulators at 0,
+    2⁶⁴ − 1 and one charge below the top (a firing at the first readout)."""
+    rng = np.random.default_rng(8)
+    q = rng.random(64)
+    q[:6] = [0.0, 2.0**-60, 2.0**-33, 0.5, 0.25, 1 - 2.0**-20]
+    q[6:12] = 2.0 ** -rng.integers(1, 12, 6) * (1 + rng.random(6) * 1e-12)
+    inc = (q * TWO64).astype(np.uint64)
+    acc = rng.integers(0, 2**64, 64, dtype=np.uint64)
+    acc[1], acc[12], acc[13], acc[14] = np.uint64(2**64 - 1), 0, 0, np.uint64(2**64 - 1)
+    acc[15] = np.uint64(2**64 - int(inc[15]))  # acc + inc = 2⁶⁴ exactly
+    acc[2] = np.uint64(2**64 - 10 * int(inc[2]))  # 2⁻³³ θ (integer division): fires at 10
+    work = np.zeros((4, 64), np.uint64)
+    for count in (0, 1, 16, 37, 300):
+        _check_run(lambda a, out, f, s, nb, c: zero_reset_run(a, q, work, out, f, s, nb, c),
+                   acc, [inc] * count, True)
+        masks, _ = _reference_run(acc, [inc] * count, True)
+        if count >= 16:  # lane 1 (2⁻⁶⁰ θ from 2⁶⁴ − 1) fires once, at the first readout
+            assert [m >> 1 & 1 for m in masks] == [1] + [0] * (count - 1)
+            assert [k for k, m in enumerate(masks) if m >> 2 & 1] == [9]
 
 
 def test_linear_carry_run64_equals_the_scalar_formula():
