@@ -278,19 +278,26 @@ class _RunLanes:
         """The word of sixteen (or eight) 4-lane masks (<4 x i64>, all ones or
         zero, in the loop's order): blends, packs and two ``vpmovmskb`` (one)."""
         b = self.builder
-        i16, i32, i64 = ir.IntType(16), ir.IntType(32), ir.IntType(64)
-        v8 = ir.VectorType(i32, 8)
+        v8 = ir.VectorType(ir.IntType(32), 8)
         parts = [b.bitcast(x, v8) for x in parts]
         # one dword per lane (both halves of a 64-bit mask are equal): vpblendd
         odd = ir.Constant(v8, [0, 9, 2, 11, 4, 13, 6, 15])
-        dwords = [b.shuffle_vector(x, y, odd) for x, y in zip(parts[::2], parts[1::2],
-                                                              strict=True)]
+        return self.word_of_dwords([b.shuffle_vector(x, y, odd)
+                                    for x, y in zip(parts[::2], parts[1::2], strict=True)])
+
+    def word_of_dwords(self, dwords):
+        """The word of the sign bits of eight (or four) <8 x i32> (in the order
+        of :func:`_pack_order` of width 32): four ``vpackssdw`` and two
+        ``vpacksswb`` (half as many for four), which saturate and so keep each
+        sign, and two ``vpmovmskb`` (one)."""
+        b = self.builder
+        i16, i32, i64 = ir.IntType(16), ir.IntType(32), ir.IntType(64)
         words = [self._x86("llvm.x86.avx2.packssdw", ir.VectorType(i16, 16), x, y)
                  for x, y in zip(dwords[::2], dwords[1::2], strict=True)]
         bytes_ = [self._x86("llvm.x86.avx2.packsswb", ir.VectorType(ir.IntType(8), 32), x, y)
                   for x, y in zip(words[::2], words[1::2], strict=True)]
         halves = [b.zext(self._x86("llvm.x86.avx2.pmovmskb", i32, x), i64) for x in bytes_]
-        if len(halves) == 1:  # eight parts: a 32-bit word
+        if len(halves) == 1:  # four vectors: a 32-bit word
             return halves[0]
         return b.or_(halves[0], b.shl(halves[1], i64(32)))
 
@@ -609,6 +616,7 @@ def counting_down_pays(typingctx):
 
     return types.boolean(), codegen
 
+
 @intrinsic
 def countdown_run32(typingctx, count_down, period, out, first, stride, nbytes, count):
     """``count`` readouts of zero reset's periodic firing for a 64-lane block:
@@ -656,16 +664,10 @@ def countdown_run32(typingctx, count_down, period, out, first, stride, nbytes, c
             builder.store(builder.select(fired, period_v, c), slot)
             if packs:
                 v8 = ir.VectorType(i32, 8)
-                parts = [builder.shuffle_vector(c, ir.Constant(v32, ir.Undefined),
-                                                ir.Constant(v8, list(range(8 * k, 8 * k + 8))))
-                         for k in range(8)]
-                words = [lanes._x86("llvm.x86.avx2.packssdw", ir.VectorType(ir.IntType(16), 16),
-                                    x, y) for x, y in zip(parts[::2], parts[1::2], strict=True)]
-                bytes_ = [lanes._x86("llvm.x86.avx2.packsswb", ir.VectorType(ir.IntType(8), 32),
-                                     x, y) for x, y in zip(words[::2], words[1::2], strict=True)]
-                halves = [builder.zext(lanes._x86("llvm.x86.avx2.pmovmskb", i32, x), i64)
-                          for x in bytes_]
-                word = builder.or_(halves[0], builder.shl(halves[1], i64(32)))
+                word = lanes.word_of_dwords([
+                    builder.shuffle_vector(c, ir.Constant(v32, ir.Undefined),
+                                           ir.Constant(v8, list(range(8 * k, 8 * k + 8))))
+                    for k in range(8)])
             else:
                 word = _mask_word(context, builder, fired)
             _store_word(builder, data, builder.add(first_, builder.mul(loop.index, stride_)),

@@ -32,6 +32,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import warnings
 from collections.abc import Callable
 
@@ -116,7 +117,29 @@ class Terminated(BaseException):  # noqa: N818 - a signal, not an error
     """Raised in the main thread when the process receives SIGTERM."""
 
 
+#: llvmlite's Python functions that native code calls (numba's cache of compiled
+#: objects, read while a kernel loads): an exception raised in one is lost and
+#: its native caller then crashes (SIGSEGV instead of exit 143, seen when a
+#: SIGTERM landed as a cached kernel loaded).
+_NATIVE_CALLBACKS = frozenset({"_raw_object_cache_getbuffer", "_raw_object_cache_notify"})
+_REDELIVER_S = 0.05
+
+
+def _in_native_callback(frame) -> bool:
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name in _NATIVE_CALLBACKS and "llvmlite" in code.co_filename:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _on_sigterm(signum, frame):
+    if _in_native_callback(frame):  # send it again shortly, to land outside the callback
+        timer = threading.Timer(_REDELIVER_S, os.kill, (os.getpid(), signum))
+        timer.daemon = True
+        timer.start()
+        return
     raise Terminated()
 
 

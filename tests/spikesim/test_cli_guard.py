@@ -5,12 +5,16 @@ dropped."""
 from __future__ import annotations
 
 import gc
+import os
+import signal
 import sys
+import time
 
 import numpy as np
 import pytest
 from tqdm import tqdm
 
+from spikesim import cli_guard
 from spikesim.cli_guard import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated, run_guarded
 
 
@@ -203,3 +207,24 @@ def test_opencvs_failed_allocation_is_the_memory_error_line(capsys):
     assert run_guarded("spikesim test", call) == 1
     assert capsys.readouterr().err == ("spikesim test: error: not enough memory for this "
                                        "request: ask for fewer readouts or a smaller size\n")
+
+
+def test_sigterm_inside_a_native_callback_is_sent_again_after_it(monkeypatch):
+    """An exception raised in a Python function that native code calls (numba's
+    object cache, through llvmlite) is lost and the native caller crashes, so
+    there the handler sends the signal again shortly instead of raising;
+    anywhere else it raises :class:`Terminated`."""
+    sent = []
+    monkeypatch.setattr(cli_guard.os, "kill", lambda pid, sig: sent.append((pid, sig)))
+    space = {"guard": cli_guard, "sys": sys}
+    exec(compile("def _raw_object_cache_getbuffer():\n"
+                 "    guard._on_sigterm(15, sys._getframe())\n",
+                 os.path.join("site-packages", "llvmlite", "binding", "executionengine.py"),
+                 "exec"), space)
+    space["_raw_object_cache_getbuffer"]()  # returns: nothing raised inside the callback
+    deadline = time.monotonic() + 5
+    while not sent and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert sent == [(os.getpid(), signal.SIGTERM)]
+    with pytest.raises(Terminated):
+        cli_guard._on_sigterm(signal.SIGTERM, sys._getframe())
