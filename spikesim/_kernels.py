@@ -120,7 +120,7 @@ WHOLE_MAX = 2**62
 _FRAC_MAX = TWO64 - 2048.0  # the largest float64 below 2⁶⁴
 
 #: Shortest static zero-reset run counted down (:mod:`spikesim._zero_period`)
-#: rather than added and cleared per readout: its set-up (two exact divisions
+#: rather than added and cleared per readout: its set-up (two exact quotients
 #: a lane, about 0.55 µs a block) pays from about 100 readouts on (AMD EPYC
 #: host, cache-resident: 8.3 ns a block-readout both ways at 100, 5.5 against
 #: 7.8 at 200).
