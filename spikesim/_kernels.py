@@ -121,9 +121,9 @@ _FRAC_MAX = TWO64 - 2048.0  # the largest float64 below 2⁶⁴
 
 #: Shortest static zero-reset run counted down (:mod:`spikesim._zero_period`)
 #: rather than added and cleared per readout: its set-up (two exact quotients
-#: a lane, about 0.55 µs a block) pays from about 100 readouts on (AMD EPYC
-#: host, cache-resident: 8.3 ns a block-readout both ways at 100, 5.5 against
-#: 7.8 at 200).
+#: a lane, about 0.56 µs a block) pays from about 100 readouts on (AMD EPYC
+#: host, cache-resident, medians of 5 runs: 8.5 against 8.3 ns a block-readout
+#: at 100, 5.5 against 7.9 at 200).
 ZERO_PERIOD_MIN = 128
 
 RESET_MODULO = 0
@@ -651,6 +651,17 @@ def _hold_block(frames, y, x0, t_off, runs, model, frac, whole, out, q, work):
 
 
 @njit(inline="always", **_opts)
+def _run_block(hold, frames, y, x0, width, t_off, runs, model, frac, whole, out, scratch_f,
+               scratch_u, ev, words):
+    """The chunk's runs for one block and accumulator set: :func:`_hold_block`
+    where the chunk is one ``hold`` and the model noise-free, else (or where it
+    declines) :func:`_block_runs` (same arguments)."""
+    if not (hold and model.fast_ok and _hold_block(frames, y, x0, t_off, runs, model, frac,
+                                                   whole, out, scratch_f[2], scratch_u)):
+        _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out, scratch_f,
+                    scratch_u, ev, words)
+
+@njit(inline="always", **_opts)
 def _event_run(ev, ia, di, gain, offset, electrons, ev_f, ev_u, n, t_a, inv, out, t_off, y, blk,
                count, zero, static):
     """Up to ``count`` readouts from ``n`` of a linear segment (``static``: of
@@ -809,10 +820,8 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
                 for k in range(4):
                     for lane in range(BLOCK):
                         ev[k, lane] = aux[k, y, x0 + lane]
-        if not (hold and model.fast_ok and _hold_block(frames, y, x0, t_off, runs, model, f, w,
-                                                       out, scratch_f[2], scratch_u)):
-            _block_runs(frames, y, x0, width, t_off, runs, model, f, w, out, scratch_f, scratch_u,
-                        ev, words)
+        _run_block(hold, frames, y, x0, width, t_off, runs, model, f, w, out, scratch_f,
+                   scratch_u, ev, words)
         if keep:
             _store_state(frac, whole, y, x0, f, w)
             if use_aux:
@@ -826,11 +835,8 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
                     w[lane] = 0
             else:
                 _load_state(twin_state.frac, twin_state.whole, y, x0, f, w)
-            if not (hold and twin_model.fast_ok and _hold_block(
-                    frames, y, x0, t_off, runs, twin_model, f, w, twin_out, scratch_f[2],
-                    scratch_u)):
-                _block_runs(frames, y, x0, width, t_off, runs, twin_model, f, w, twin_out,
-                            scratch_f, scratch_u, ev, words)
+            _run_block(hold, frames, y, x0, width, t_off, runs, twin_model, f, w, twin_out,
+                       scratch_f, scratch_u, ev, words)
             if keep:
                 _store_state(twin_state.frac, twin_state.whole, y, x0, f, w)
 
