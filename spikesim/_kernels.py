@@ -30,12 +30,13 @@ Model (docs/model.md; Dong et al., AAAI 2024, eq. 1):
 * Event-driven shot noise (``spikesim._event``, physical mode without charge
   noise): per pixel and firing cycle the readout of the next threshold
   crossing is drawn as an Erlang waiting time in operational time
-  ``Λ = Σ E·q_n`` (draws keyed by (stream, pixel, cycle)); per readout the
-  block only subtracts ``E·q_n`` from each lane's wait and takes the firing
-  lanes' next waits from a per-lane cache of draws made ahead, so the work is
-  per spike; on runs of constant radiance it goes from firing to firing with
-  no work per readout at all (``spikesim._event.event_direct``, exact).  Its
-  state is the float64 ``aux`` array, not the fixed point.
+  ``Λ = Σ E·q_n`` (draws keyed by (stream, pixel, cycle)); on runs of
+  linear radiance (the charge on a 2⁻³² e⁻ grid, linear in the readout) each
+  pixel goes from firing to firing with no work per readout at all
+  (``spikesim._event.event_direct``, exact); elsewhere per readout the block
+  only subtracts ``E·q_n`` from each lane's wait and takes the firing lanes'
+  next waits from a per-lane cache of draws made ahead, so the work is per
+  spike.  Its state is the float64 ``aux`` array, not the fixed point.
 * Charge loss at reset: the readout after a firing collects ``(1 − f)·q_n``.
 
 Work is split in blocks of 64 pixels of one row (8 packed bytes) run in
@@ -61,8 +62,8 @@ from spikesim._event import (
     BACKLOG_MAX,
     EV_WORK_F,
     EV_WORK_U,
-    EXACT_CHARGE,
     GNEXT,
+    MOVING_WALK_MIN,
     WMIN,
     event_cache_clear,
     event_direct,
@@ -71,7 +72,8 @@ from spikesim._event import (
     event_step,
     event_sync,
     init_event_block,
-    static_charge,
+    linear_charge,
+    walkable,
 )
 from spikesim._event import WAIT as EV_WAIT
 from spikesim._poisson import LAMBDA_MAX, _shot_noise_block
@@ -482,81 +484,31 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     prefer_wide_vectors()  # the per-readout steps' loops of hashes vectorise (1.2–1.3×)
     if x0 < 0 or y < 0:  # never: it proves the indices non-negative, so the lane
         return  # loops index without wrap-around checks and vectorise (1.4× per block)
+    gain = scratch_f[10]
+    offset = scratch_f[11]
+    _charge_rows(model, y, x0, gain, offset)
+    if model.event:  # (it reads the electrons)
+        _noise_rows(model, y, x0, scratch_f[12], scratch_f[13])
+        _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev,
+                    words)
+        return
     ia = scratch_f[0]
     di = scratch_f[1]
     ibuf = scratch_f[2]
     zbuf = scratch_f[3]
     sdbuf = scratch_f[4]
     shot_work = scratch_f[5:10]
-    gain = scratch_f[10]
-    offset = scratch_f[11]
     electrons = scratch_f[12]
     charge_sd = scratch_f[13]
     bbuf = scratch_u[0]
     pkeys = scratch_u[1]
-    ev_f = scratch_f[_EV_F0:]
-    ev_u = scratch_u[_EV_U0:]
-    _charge_rows(model, y, x0, gain, offset)
-    noise_rows = model.event  # electrons and charge_sd copied (the event path reads them)
-    if noise_rows:
-        _noise_rows(model, y, x0, electrons, charge_sd)
+    noise_rows = False  # electrons and charge_sd copied
     blk = x0 // BLOCK
-    reset = model.reset
-    zero = reset == RESET_ZERO
+    zero = model.reset == RESET_ZERO
     if (model.paper_sg2 > 0.0 or model.paper_sp2 > 0.0 or model.jitter > 0.0
             or model.charge_sd[0, 0] >= 0.0):  # (−1 everywhere when off)
         pixel_keys_into(np.uint64(y * width + x0), pkeys)
     after = ev[AFTER_RESET]
-    if model.event:
-        pix0 = np.uint64(y * width + x0)
-        event_cache_clear(ev_f, ev_u, width - x0)
-        for r in range(runs.kind.shape[0]):
-            n0 = runs.start[r]
-            n1 = runs.stop[r]
-            if runs.kind[r] == RUN_PIECES:
-                _pieces_radiance(frames, runs.p0[r], runs.p1[r], runs.piece_a,
-                                 runs.piece_b, runs.piece_len, runs.piece_phi, y, x0, ibuf)
-                _put(out, n0 - t_off, y, blk,
-                     event_step(ibuf, gain, offset, electrons, ev, reset, model.jitter,
-                                model.loss, model.ev_keys, pix0, ev_f, ev_u))
-                continue
-            t_a = runs.ta[r]
-            inv = runs.inv[r]
-            _segment_radiance(frames, runs.a[r], runs.b[r], y, x0, ia, di)
-            if model.loss == 0.0:  # waits in registers, firings from the cache
-                moving = 0
-                for lane in range(BLOCK):
-                    moving += 0 if di[lane] == 0.0 else 1
-                if moving == 0:
-                    static_charge(n0, t_a, inv, ia, di, gain, offset, electrons, LAMBDA_MAX,
-                                  ibuf)
-                    exact = 0
-                    for lane in range(BLOCK):
-                        exact += 1 if ibuf[lane] <= EXACT_CHARGE else 0
-                    if exact == BLOCK:  # firing to firing, no work per readout
-                        event_direct(ev, ibuf, electrons, reset, model.jitter, model.ev_keys,
-                                     pix0, ev_f, ev_u, words, n1 - n0)
-                        for k in range(n1 - n0):
-                            _put(out, n0 + k - t_off, y, blk, words[k])
-                        continue
-                n = n0
-                while n < n1:
-                    k, bad = _event_run(ev, ibuf if moving == 0 else ia, di, gain, offset,
-                                        electrons, ev_f, ev_u, n, t_a, inv, out, t_off, y, blk,
-                                        n1 - n, zero, moving == 0)
-                    n += np.int64(k)
-                    if bad != 0:
-                        event_settle(bad, electrons, ev, reset, model.jitter, model.ev_keys,
-                                     pix0, ev_f, ev_u)
-                continue
-            for n in range(n0, n1):
-                phi = (np.float64(n) + 0.5 - t_a) * inv
-                for lane in range(BLOCK):
-                    ibuf[lane] = ia[lane] + di[lane] * phi
-                _put(out, n - t_off, y, blk,
-                     event_step(ibuf, gain, offset, electrons, ev, reset, model.jitter,
-                                model.loss, model.ev_keys, pix0, ev_f, ev_u))
-        return
     fast_ok = model.fast_ok
     paper_fast_ok = model.paper_fast_ok
     for r in range(runs.kind.shape[0]):
@@ -622,6 +574,69 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
 
 
 @njit(inline="always", **_opts)
+def _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words):
+    """:func:`_block_runs` for the event sampler (``model.event``; same
+    arguments, the rows set up).  Without charge loss, each run's charge is
+    made linear on its grid (:func:`spikesim._event.linear_charge`; a ramp
+    too steep for that form takes the per-readout step) and the
+    run walked from firing to firing where every sum is exact
+    (:func:`spikesim._event.event_direct`; a changing charge from
+    :data:`spikesim._event.MOVING_WALK_MIN` readouts on), else it takes the
+    readout loop with its cache (:func:`_event_run`).  With charge loss, and
+    on readouts split into pieces, the per-readout step
+    (:func:`spikesim._event.event_step`)."""
+    ia, di, lam, dlam, lam_first = (scratch_f[0], scratch_f[1], scratch_f[2], scratch_f[3],
+                                    scratch_f[4])
+    gain, offset, electrons = scratch_f[10], scratch_f[11], scratch_f[12]
+    ev_f = scratch_f[_EV_F0:]
+    ev_u = scratch_u[_EV_U0:]
+    blk = x0 // BLOCK
+    reset = model.reset
+    pix0 = np.uint64(y * width + x0)
+    event_cache_clear(ev_f, ev_u, width - x0)
+    for r in range(runs.kind.shape[0]):
+        n0 = runs.start[r]
+        n1 = runs.stop[r]
+        if runs.kind[r] == RUN_PIECES:
+            _pieces_radiance(frames, runs.p0[r], runs.p1[r], runs.piece_a, runs.piece_b,
+                             runs.piece_len, runs.piece_phi, y, x0, lam)
+            _put(out, n0 - t_off, y, blk,
+                 event_step(lam, gain, offset, electrons, ev, reset, model.jitter, model.loss,
+                            model.ev_keys, pix0, ev_f, ev_u))
+            continue
+        t_a = runs.ta[r]
+        inv = runs.inv[r]
+        _segment_radiance(frames, runs.a[r], runs.b[r], y, x0, ia, di)
+        if model.loss > 0.0 or not linear_charge(t_a, inv, ia, di, gain, offset, electrons,
+                                                 lam, dlam):
+            for n in range(n0, n1):
+                phi = (np.float64(n) + 0.5 - t_a) * inv
+                for lane in range(BLOCK):
+                    lam[lane] = ia[lane] + di[lane] * phi
+                _put(out, n - t_off, y, blk,
+                     event_step(lam, gain, offset, electrons, ev, reset, model.jitter,
+                                model.loss, model.ev_keys, pix0, ev_f, ev_u))
+            continue
+        m0 = n0 - np.int64(np.floor(t_a))  # readouts after the segment's reference
+        walk, moving = walkable(lam, dlam, m0, n1 - n0, lam_first)
+        if walk and (not moving or n1 - n0 >= MOVING_WALK_MIN):  # no work per readout
+            event_direct(ev, lam_first, dlam, electrons, reset, model.jitter, model.ev_keys,
+                         pix0, ev_f, ev_u, words, n1 - n0)
+            for k in range(n1 - n0):
+                _put(out, n0 + k - t_off, y, blk, words[k])
+            continue
+        n = n0
+        while n < n1:  # waits in registers, firings from the cache
+            k, bad = _event_run(ev, lam_first if not moving else lam, dlam, electrons, ev_f,
+                                ev_u, m0 + (n - n0), out, t_off, y, n, blk, n1 - n,
+                                reset == RESET_ZERO, not moving)
+            n += np.int64(k)
+            if bad != 0:
+                event_settle(bad, electrons, ev, reset, model.jitter, model.ev_keys, pix0, ev_f,
+                             ev_u)
+
+
+@njit(inline="always", **_opts)
 def _hold_block(frames, y, x0, t_off, runs, model, frac, whole, out, q, work):
     """A chunk that is one hold (one run whose key frames are ``a == b``: a
     static scene, or any chunk after the last key) of a noise-free model
@@ -662,16 +677,17 @@ def _run_block(hold, frames, y, x0, width, t_off, runs, model, frac, whole, out,
                     scratch_u, ev, words)
 
 @njit(inline="always", **_opts)
-def _event_run(ev, ia, di, gain, offset, electrons, ev_f, ev_u, n, t_a, inv, out, t_off, y, blk,
-               count, zero, static):
-    """Up to ``count`` readouts from ``n`` of a linear segment (``static``: of
-    constant radiance, ``ia`` then each lane's ``λ``), event sampler without charge loss
-    (:func:`spikesim._simd.event_cached_run64` and its variants), the
-    firings it took from the cache finished (:func:`spikesim._event.event_sync`);
-    returns ``(k, bad)`` as it does."""
+def _event_run(ev, lam, dlam, electrons, ev_f, ev_u, m, out, t_off, y, n, blk, count, zero,
+               static):
+    """Up to ``count`` readouts from ``n`` (``m`` readouts after its segment's
+    reference) of a run of linear charge (``lam``, ``dlam``:
+    :func:`spikesim._event.linear_charge`; ``static``: ``dlam`` all zero),
+    event sampler without charge loss (:func:`spikesim._simd.event_cached_run64`
+    and its variants), the firings it took from the cache finished
+    (:func:`spikesim._event.event_sync`); returns ``(k, bad)`` as it does."""
     first, stride, nbytes = _word_at(out, n - t_off, y, blk)
-    args = (ev[EV_WAIT], ia, di, gain, offset, electrons, ev_f[GNEXT], ev_f[WMIN], n, t_a, inv,
-            LAMBDA_MAX, -BACKLOG_MAX, out, first, stride, nbytes, count)
+    args = (ev[EV_WAIT], lam, dlam, electrons, ev_f[GNEXT], ev_f[WMIN], m, LAMBDA_MAX,
+            -BACKLOG_MAX, out, first, stride, nbytes, count)
     if zero and static:
         k, bad, used = event_cached_run64_zero_static(*args)
     elif zero:

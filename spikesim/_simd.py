@@ -748,11 +748,11 @@ def prefer_wide_vectors(typingctx):
 
 def _event_cached_run(zero_reset, static):
     @intrinsic
-    def event_cached_run(typingctx, wait, level, slope, gain, offset, electrons, gnext, wmin,
-                         n0, t_a, inv, lam_max, backlog, out, first, stride, nbytes, count):
-        arrays = (wait, level, slope, gain, offset, electrons, gnext, wmin)
-        if not (all(_is_f64_array(a) for a in arrays) and isinstance(n0, types.Integer)
-                and all(isinstance(x, types.Float) for x in (t_a, inv, lam_max, backlog))
+    def event_cached_run(typingctx, wait, lam, dlam, electrons, gnext, wmin, m0, lam_max,
+                         backlog, out, first, stride, nbytes, count):
+        arrays = (wait, lam, dlam, electrons, gnext, wmin)
+        if not (all(_is_f64_array(a) for a in arrays) and isinstance(m0, types.Integer)
+                and all(isinstance(x, types.Float) for x in (lam_max, backlog))
                 and _is_bytes(out) and _all_int(first, stride, nbytes, count)):
             return None
         result = types.UniTuple(types.uint64, 3)
@@ -764,43 +764,34 @@ def _event_cached_run(zero_reset, static):
             zero = i64(0)
             wide = _avx512(context)
             wait_ptr = _lanes_ptr(context, builder, sig, args, 0, zero, fvec)
-            lo_ptr = _lanes_ptr(context, builder, sig, args, 7, zero, fvec)
-            # static: argument 1 holds each lane's λ, made once per run by the caller;
-            # moving: the rows are read in the loop, part by part (loaded once
-            # before it, LLVM copied them to the stack at every call, the loop
-            # then reading the copies)
-            lam_static, e, gn = (
-                [_part(builder, builder.load(
-                    _lanes_ptr(context, builder, sig, args, k, zero, fvec), align=8), j)
-                 for j in range(LANES // 8)] if k != 1 or static else None for k in (1, 5, 6))
-            rows = None if static else {
-                k: builder.bitcast(_lanes_ptr(context, builder, sig, args, k, zero, fvec),
-                                   part.as_pointer()) for k in (1, 2, 3, 4, 5)}
+            lo_ptr = _lanes_ptr(context, builder, sig, args, 5, zero, fvec)
+            # static: λ itself, loaded once; moving: λ and its change read in the
+            # loop, part by part (loaded once before it, LLVM copied them to the
+            # stack at every call, the loop then reading the copies)
+            e, gn = ([_part(builder, builder.load(
+                _lanes_ptr(context, builder, sig, args, k, zero, fvec), align=8), j)
+                for j in range(LANES // 8)] for k in (3, 4))
+            rows = {k: builder.bitcast(_lanes_ptr(context, builder, sig, args, k, zero, fvec),
+                                       part.as_pointer()) for k in (1, 2)}
 
             def row_part(k, j):
                 return builder.load(builder.gep(rows[k], [i64(j)]), align=8)
-            n_first = context.cast(builder, args[8], sig.args[8], types.int64)
-            t_a_, inv_, lam_max_, backlog_ = (
-                context.cast(builder, args[k], sig.args[k], types.float64) for k in (9, 10, 11, 12))
-            data, first_, stride_, nbytes_ = _out_bytes(context, builder, sig, args, 13)
-            count_ = context.cast(builder, args[17], sig.args[17], types.int64)
+            lam_static = [row_part(1, j) for j in range(LANES // 8)] if static else None
+            m_first = context.cast(builder, args[6], sig.args[6], types.int64)
+            lam_max_, backlog_ = (
+                context.cast(builder, args[k], sig.args[k], types.float64) for k in (7, 8))
+            data, first_, stride_, nbytes_ = _out_bytes(context, builder, sig, args, 9)
+            count_ = context.cast(builder, args[13], sig.args[13], types.int64)
             cap = _splat(builder, part, lam_max_)
             backlog_v = _splat(builder, part, backlog_)
             floor = [builder.fmul(backlog_v, ej) for ej in e]  # −BACKLOG_MAX·E
             fzero = ir.Constant(part, [0.0] * 8)
             spent = ir.Constant(part, [float("inf")] * 8)
-            half = ir.Constant(ir.DoubleType(), 0.5)
 
-            def electrons_at(k, j):
-                # phi = (float(n) + 0.5 - t_a) * inv, λ = min((g·(a + d·phi) + o)·E, cap):
-                # the scalar step's operations in its order (no contraction)
-                n = builder.sitofp(builder.add(n_first, k), ir.DoubleType())
-                phi = builder.fmul(builder.fsub(builder.fadd(n, half), t_a_), inv_)
-                level_now = builder.fadd(row_part(1, j),
-                                         builder.fmul(row_part(2, j), _splat(builder, part, phi)))
-                qe = builder.fmul(builder.fadd(builder.fmul(row_part(3, j), level_now),
-                                               row_part(4, j)), row_part(5, j))
-                return builder.select(builder.fcmp_ordered("<", cap, qe), cap, qe)
+            def electrons_at(m, j):
+                # λ = min(lam + m·dlam, cap): spikesim._event.charge_at's operations
+                x = builder.fadd(row_part(1, j), builder.fmul(m, row_part(2, j)))
+                return builder.select(builder.fcmp_ordered("<", cap, x), cap, x)
 
             k_slot = cgutils.alloca_once_value(builder, zero)
             bad_slot = cgutils.alloca_once_value(builder, zero)
@@ -819,8 +810,10 @@ def _event_cached_run(zero_reset, static):
             builder.cbranch(builder.icmp_signed("<", k, count_), body, done)
             builder.position_at_end(body)
             word = taken = prev = None
+            m = None if static else _splat(builder, part, builder.sitofp(
+                builder.add(m_first, k), ir.DoubleType()))
             for j in range(LANES // 8):  # 8 lanes at a time, in order (see the docstring)
-                lam = lam_static[j] if static else electrons_at(k, j)
+                lam = lam_static[j] if static else electrons_at(m, j)
                 w_in = builder.load(w_slots[j])
                 if wide and prev is not None:
                     w_in = _opaque(builder, w_in, "v", after=prev)
@@ -855,8 +848,8 @@ def _event_cached_run(zero_reset, static):
             return context.make_tuple(builder, result, [
                 builder.load(k_slot), builder.load(bad_slot), builder.load(used_slot)])
 
-        return (result(wait, level, slope, gain, offset, electrons, gnext, wmin, n0, t_a, inv,
-                       lam_max, backlog, out, first, stride, nbytes, count), codegen)
+        return (result(wait, lam, dlam, electrons, gnext, wmin, m0, lam_max, backlog, out,
+                       first, stride, nbytes, count), codegen)
 
     return event_cached_run
 
@@ -867,9 +860,9 @@ event_cached_run64.__doc__ = """Up to ``count`` readouts of the event-driven sho
     waits held in registers, its firings taken from the block's cache of drawn
     cycles while it can (modulo or subtract reset).
 
-    Readout ``k`` (clock index ``n = n0 + k``, ``phi = (n + ½ − t_a)·inv``)
-    takes lane ``j``'s ``λ = min((gain·(level + slope·phi) + offset)·E, lam_max)``
-    electrons (float64, in exactly this order: the scalar step's value) off its
+    Readout ``k`` takes lane ``j``'s ``λ = min(lam + m·dlam, lam_max)``
+    electrons (``m = m0 + k`` readouts after its segment's reference, as a
+    float64; :func:`spikesim._event.charge_at`, in exactly this order) off its
     ``wait``; a lane fires where the wait is ≤ 0, and every readout's firing
     bits are stored as :func:`store_word` does (at byte ``first + k·stride``
     of ``out``).  A lane that fires at a wait ≥ its ``wmin`` (+∞: no draw
@@ -890,11 +883,8 @@ event_cached_run64.__doc__ = """Up to ``count`` readouts of the event-driven sho
     vectors LLVM made all sixteen masks of a readout first and spilled most of
     them (17.4 against 11.1 ns a block-readout, static, cache-resident)."""
 #: The same for zero reset (a lane takes ``gnext`` itself), and for runs of
-#: constant radiance (``slope`` all zero, the caller checks), whose ``level``
-#: argument is then each lane's ``λ`` itself (:func:`spikesim._event.static_charge`;
-#: ``slope``, ``gain`` and ``offset`` unread): made once per run, where loading
-#: the five rows and computing ``λ`` at every call measured about a fifth of
-#: the block function's time at 0.17 spikes per readout.
+#: constant radiance (``dlam`` all zero, the caller checks), which subtract
+#: ``lam`` itself (``dlam``, ``m0`` and ``lam_max`` unread).
 event_cached_run64_zero = _event_cached_run(True, False)
 event_cached_run64_static = _event_cached_run(False, True)
 event_cached_run64_zero_static = _event_cached_run(True, True)

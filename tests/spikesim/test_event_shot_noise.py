@@ -66,13 +66,35 @@ def test_static_scene_matches_reference(reset, e, bright, jitter):
     assert 0.02 < ss.bits.unpack(got, 70).mean() < 0.98
 
 
-def _per_readout(ev, lam, electrons, reset, jitter, keys, lkw, lkj, count):
-    """The definition :func:`event_direct` must equal: subtract ``λ`` every
-    readout, fire where the wait is ≤ 0 and end the cycle with
+@pytest.mark.parametrize("reset", RESETS)
+def test_long_moving_runs_walked_equal_the_readout_loop_and_the_reference(reset):
+    """Runs of changing radiance from :data:`MOVING_WALK_MIN` readouts on go from
+    firing to firing; cut into chunks of 7 readouts the same runs take the
+    readout loop.  Both give the reference's bits (fixed patterns, hot pixels,
+    jitter), so the walk is exact for a changing charge."""
+    rng = np.random.default_rng(15)
+    clock, n = 1000.0, 2 * _event.MOVING_WALK_MIN + 60
+    noise = ss.noise.PhysicalNoise(electrons_per_threshold=300.0, temporal_threshold_noise=0.02,
+                                   hot_pixel_fraction=0.05)
+    sensor = ss.Sensor(height=3, width=70, cfa="RGGB", clock_hz=clock, reset=reset, noise=noise)
+    imgs = [(rng.random((3, 70, 3)) * 1.6).astype(np.float32) for _ in range(3)]
+    imgs[1][:, :20] = 0.0  # light that fades to nothing and comes back
+    keys = np.array([0.0, _event.MOVING_WALK_MIN + 0.5, n - 1.0]) / clock
+    scene = Keyframes(keys, imgs)
+    walked = ss.simulate(scene, sensor, n, seed=2, chunk_readouts=n).packed
+    looped = ss.simulate(scene, sensor, n, seed=2, chunk_readouts=7).packed
+    np.testing.assert_array_equal(walked, looped)
+    np.testing.assert_array_equal(walked, reference_simulate(scene, sensor, n, seed=2))
+    assert 0.02 < ss.bits.unpack(walked, 70).mean() < 0.98
+
+
+def _per_readout(ev, lam, dlam, electrons, reset, jitter, keys, lkw, lkj, count):
+    """The definition :func:`event_direct` must equal: subtract ``lam + k·dlam``
+    at readout ``k``, fire where the wait is ≤ 0 and end the cycle with
     :func:`fire_cycle`.  Returns the spike words; ``ev`` is advanced."""
     words = []
-    for _ in range(count):
-        ev[_event.WAIT] = ev[_event.WAIT] - lam
+    for k in range(count):
+        ev[_event.WAIT] = ev[_event.WAIT] - (lam + np.float64(k) * dlam)
         word = 0
         for lane in np.flatnonzero(ev[_event.WAIT] <= 0.0).tolist():
             word |= 1 << lane
@@ -84,66 +106,128 @@ def _per_readout(ev, lam, electrons, reset, jitter, keys, lkw, lkj, count):
     return words
 
 
-def _direct_block(rng, e):
-    """A block's state and constant charges covering the direct path's cases:
-    no light, a trace of it, typical, near and beyond one threshold a readout
-    (modulo drops, subtract backlogs), waits at or below zero and waits beyond
-    the exact range (stepped)."""
+def _direct_block(rng, e, count, moving):
+    """A block's state and charges covering the direct path's cases: no light,
+    a trace of it, typical, near and beyond one threshold a readout (modulo
+    drops, subtract backlogs), waits at or below zero and waits beyond the
+    exact ranges (stepped); ``moving``: charges that change by up to 3× (up
+    and down, from zero) over the ``count`` readouts, half the lanes."""
     electrons = e * (1.0 + 0.05 * rng.standard_normal(64))
     frac = rng.random(64)
     lam = electrons * np.repeat([0.0, 1e-7, 0.05, 0.17, 0.4, 0.75, 1.2, 3.0], 8)
     lam = np.array([_event.on_grid(x) for x in lam])
+    dlam = np.zeros(64)
+    if moving:
+        change = np.where(lam > 0, lam, 0.3 * electrons) * rng.uniform(-0.9, 2.0, 64)
+        change[lam == 0] = np.abs(change[lam == 0])
+        dlam = np.array([_event.on_grid(x) for x in change / count])
+        dlam[::2] = 0.0
     ev = np.zeros((4, 64))
     ev[_event.NEED] = electrons * (1.0 - frac)
     ev[_event.CYCLE] = rng.integers(0, 50, 64).astype(np.float64)
     ev[_event.WAIT] = electrons * (1.0 - frac) * (0.5 + rng.random(64))
     ev[_event.WAIT, ::9] = -rng.random(8) * lam[::9]  # fire at the first readout
     ev[_event.WAIT, 5::13] = 2.0**20 + rng.random(5) * 1e3  # beyond the exact range
-    return ev, lam, electrons
+    ev[_event.WAIT, 3::16] = 2.0**19 + rng.random(4) * 1e3  # beyond a moving lane's
+    for lane, k in zip((42, 43, 60, 61), (5, 137, 138, count), strict=True):  # ties: the sum
+        ev[_event.WAIT, lane] = _event.charge_sum(float(k), lam[lane], dlam[lane])  # reaches it
+    return ev, lam, dlam, electrons
 
 
+@pytest.mark.parametrize("moving", [False, True])
 @pytest.mark.parametrize("reset", [0, 1, 2])
 @pytest.mark.parametrize("e, jitter", [(1000.0, 0.006), (1000.0, 0.0), (40.0, 0.1), (5.0, 0.2)])
-def test_direct_runs_equal_the_per_readout_definition_bit_for_bit(reset, e, jitter):
+def test_direct_runs_equal_the_per_readout_definition_bit_for_bit(reset, e, jitter, moving):
     """:func:`event_direct` (firing to firing) gives the words and the state of
-    the per-readout definition bit for bit, in one run or split in two."""
-    rng = np.random.default_rng(reset * 17 + int(e))
-    ev, lam, electrons = _direct_block(rng, e)
+    the per-readout definition bit for bit, in one run or split in two, for
+    constant and for linear charges."""
+    rng = np.random.default_rng(reset * 17 + int(e) + 5 * moving)
+    count = 300
+    ev, lam, dlam, electrons = _direct_block(rng, e, count, moving)
     keys = rng.integers(1, 2**63, 4, dtype=np.uint64)
     wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
     wu[_event.LKW] = [_event.lane_key(keys[0], np.uint64(p)) for p in range(64)]
     wu[_event.LKJ] = [_event.lane_key(keys[3], np.uint64(p)) for p in range(64)]
     wf = np.zeros((_event.EV_WORK_F, 64))
-    count = 300
     want_ev = ev.copy()
-    want = _per_readout(want_ev, lam, electrons, reset, jitter, keys, wu[_event.LKW],
+    want = _per_readout(want_ev, lam, dlam, electrons, reset, jitter, keys, wu[_event.LKW],
                         wu[_event.LKJ], count)
     for split in (count, 137):
         got_ev, words = ev.copy(), np.zeros(count, np.uint64)
-        _event.event_direct(got_ev, lam, electrons, reset, jitter, keys, np.uint64(0), wf, wu,
-                            words, split)
+        _event.event_direct(got_ev, lam, dlam, electrons, reset, jitter, keys, np.uint64(0), wf,
+                            wu, words, split)
         if split < count:
             rest = np.zeros(count - split, np.uint64)
-            _event.event_direct(got_ev, lam, electrons, reset, jitter, keys, np.uint64(0), wf,
-                                wu, rest, count - split)
+            _event.event_direct(got_ev, lam + split * dlam, dlam, electrons, reset, jitter, keys,
+                                np.uint64(0), wf, wu, rest, count - split)
             words[split:] = rest
         assert [int(x) for x in words] == want
         np.testing.assert_array_equal(got_ev[:3].view(np.uint64), want_ev[:3].view(np.uint64))
     assert sum(bin(x).count("1") for x in want) > 64  # every kind of lane fired
 
 
-def test_static_charge_is_on_the_exact_grid():
-    """:func:`static_charge` rounds ``λ`` to :data:`CHARGE_GRID` (what makes the
-    direct runs exact), by at most half a step, and leaves large values alone."""
+def test_linear_crossing_is_the_first_readout_whose_sum_reaches_the_wait():
+    """:func:`crossing_linear` against a brute-force search over exact sums, for
+    charges rising, falling to zero, starting at zero, nearly constant, waits
+    far beyond the run and waits exactly equal to a sum; any reciprocal gives
+    the same readout (it only places the first guess: halved and doubled here,
+    so the walk steps both ways); :func:`charge_sum` is each sum exactly."""
+    rng = np.random.default_rng(12)
+    cases = 0
+    for _ in range(3000):
+        left = int(rng.integers(1, 400))
+        lam = _event.on_grid(rng.choice([0.0, rng.uniform(0.0, 1.0), rng.uniform(0.0, 2e3)]))
+        end = _event.on_grid(rng.choice([0.0, lam * rng.uniform(0.0, 3.0), rng.uniform(0, 2e3)]))
+        dlam = _event.on_grid((end - lam) / max(left - 1, 1))
+        if lam + (left - 1) * dlam < 0.0 or dlam == 0.0:
+            continue
+        sums = np.cumsum([lam + k * dlam for k in range(left)])  # exact: all on the grid
+        j = int(rng.integers(0, left))
+        for w in (_event.on_grid(rng.uniform(1e-9, 1.3) * max(sums[-1], 1.0)), sums[j],
+                  sums[j] - 2.0**-32, sums[j] + 2.0**-32):
+            if not w > 0.0:
+                continue
+            hit = np.flatnonzero(sums >= w)
+            want = float(hit[0] + 1) if hit.size else left + 1.0
+            inv = 1.0 / lam if lam > 0.0 else np.inf
+            for guess in (inv, 0.5 * inv, 2.0 * inv):
+                got = _event.crossing_linear(w, lam, dlam, guess, float(left))
+                assert got == want, (w, lam, dlam, guess)
+            k = float(min(want, left))
+            assert _event.charge_sum(k, lam, dlam) == sums[int(k) - 1]
+            cases += 1
+    assert cases > 6000
+
+
+def test_linear_charge_is_on_the_exact_grid_and_chunk_free():
+    """:func:`linear_charge` rounds ``λ`` at the segment's reference readout and
+    its change per readout to :data:`CHARGE_GRID` (what makes the direct runs
+    exact), by at most half a step, gives no change where the radiance holds,
+    leaves large values alone and declines ramps too steep for the form."""
     rng = np.random.default_rng(9)
-    level = rng.random(64) * 3.0
+    level, slope = rng.random(64) * 3.0, rng.standard_normal(64) * 0.2
+    slope[::3] = 0.0
     gain, offset, e = 1.0 + rng.random(64), np.full(64, 0.003), np.full(64, 977.7)
-    lam = np.empty(64)
-    _event.static_charge(4, 1.5, 0.0, level, np.zeros(64), gain, offset, e, 2.0**62, lam)
-    exact = (gain * level + offset) * e
+    t_a, inv = 41.3, 1.0 / 16.25
+    lam, dlam = np.empty(64), np.empty(64)
+    assert _event.linear_charge(t_a, inv, level, slope, gain, offset, e, lam, dlam)
+    phi = (np.floor(t_a) + 0.5 - t_a) * inv
     assert np.all(lam * 2.0**32 == np.round(lam * 2.0**32))
-    assert np.max(np.abs(lam - exact)) <= 2.0**-33
+    assert np.all(dlam * 2.0**32 == np.round(dlam * 2.0**32))
+    assert np.max(np.abs(lam - (gain * (level + slope * phi) + offset) * e)) <= 2.0**-33
+    assert np.max(np.abs(dlam - gain * slope * inv * e)) <= 2.0**-33
+    assert np.all(dlam[::3] == 0.0)
     assert _event.on_grid(3.0e7 + 0.1) == 3.0e7 + 0.1 and _event.on_grid(2.0**62) == 2.0**62
+    # readout n collects charge_at(lam, dlam, n − ⌊t_a⌋): within 2⁻³³·(1 + m) of the exact line
+    m = 300.0
+    exact = (gain * (level + slope * (phi + m * inv)) + offset) * e
+    got = np.array([_event.charge_at(lam[k], dlam[k], m, 2.0**62) for k in range(64)])
+    assert np.max(np.abs(got - exact)) <= 2.0**-33 * (1.0 + m) + 1e-9
+    # a ramp steeper than DLAM_MAX (or one that overflows) does not take the form
+    for steep in (1e300, np.inf):
+        level2, slope2 = level.copy(), slope.copy()
+        level2[5], slope2[5] = 3e38, -steep
+        assert not _event.linear_charge(t_a, inv, level2, slope2, gain, offset, e, lam, dlam)
 
 
 def test_negligible_drop_rule_keeps_below_two_to_the_minus_64():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from spikesim._event import static_charge
+from spikesim._event import on_grid
 from spikesim._simd import (
     advance_cycles64,
     carry_run64,
@@ -74,10 +74,9 @@ def _ctz(m):
 
 
 @njit
-def _event_run(variant, wait, a, d, g, o, e, gn, lo, n0, t_a, inv, cap, floor, out, first,
-               stride, nbytes, count):
-    args = (wait, a, d, g, o, e, gn, lo, n0, t_a, inv, cap, floor, out, first, stride, nbytes,
-            count)
+def _event_run(variant, wait, lam, dlam, e, gn, lo, m0, cap, floor, out, first, stride, nbytes,
+               count):
+    args = (wait, lam, dlam, e, gn, lo, m0, cap, floor, out, first, stride, nbytes, count)
     if variant == 0:
         return event_cached_run64(*args)
     if variant == 1:
@@ -303,21 +302,26 @@ def test_store_word_writes_the_low_bytes_little_endian_and_nothing_else():
 
 @pytest.mark.parametrize("variant", [0, 1, 2, 3])
 def test_event_cached_run64_equals_the_scalar_steps_and_stops_where_a_lane_cannot_take(variant):
-    """Waits in registers: each readout subtracts ``min((g·(a + d·phi) + o)·E,
-    cap)`` (static variants: ``d`` = 0, and their ``level`` argument is ``λ``,
-    made once by ``static_charge`` and rounded to its grid); a firing lane whose wait is ≥ its
-    ``wmin`` takes ``max(wait + gnext, floor·E)`` (zero reset: ``gnext``) and
-    its ``wmin`` becomes +∞; every readout's firing word is stored; the call
-    ends after the first readout where a firing lane could not take, returning
-    the readouts done, those lanes and the lanes that took."""
+    """Waits in registers: each readout subtracts ``min(lam + m·dlam, cap)``,
+    ``m`` the readouts after the segment's reference (static variants: ``lam``
+    itself, ``dlam`` unread); a firing lane whose wait is ≥ its ``wmin``
+    takes ``max(wait + gnext, floor·E)`` (zero reset: ``gnext``) and its
+    ``wmin`` becomes +∞; every readout's firing word is stored; the call ends
+    after the first readout where a firing lane could not take, returning the
+    readouts done, those lanes and the lanes that took."""
     zero, static = variant >= 2, variant % 2 == 1
     rng = np.random.default_rng(8 + variant)
-    a, d = rng.random(64), (0.0 if static else 0.01) * rng.standard_normal(64)
-    g, o, e = 1.0 + 0.1 * rng.random(64), np.full(64, 0.002), 900.0 + 200.0 * rng.random(64)
-    n0, t_a, inv, cap, floor = 5, 3.25, 0.125, 2.0**62, -(2.0**62)
+    lam = np.array([on_grid(x) for x in 900.0 * rng.random(64)])
+    dlam = np.array([on_grid(x) for x in 3.0 * rng.standard_normal(64)])
+    if static:  # its dlam is never read: garbage must not matter
+        dlam = np.full(64, np.nan)
+    e = 900.0 + 200.0 * rng.random(64)
+    m0, cap, floor = 5, 2.0**62, -(2.0**62)
+    lam[7] = 2.0**63  # capped (the static variants subtract it as it is)
     for base, ready, count in ((3000.0, 1.0, 60), (3000.0, 0.9, 60), (50.0, 0.0, 40),
                                (1e9, 1.0, 7), (50.0, 1.0, 0), (0.0, 1.0, 5)):
         wait = base + 100.0 * rng.random(64)
+        wait[7] = 1e30
         gn = 900.0 + 300.0 * rng.random(64)
         # ready lanes' lowest wait: within one readout's electrons (some firings
         # fall below it), or below any (only a spent draw stops a lane)
@@ -325,17 +329,12 @@ def test_event_cached_run64_equals_the_scalar_steps_and_stops_where_a_lane_canno
         lo = np.where(rng.random(64) < ready, top - 600.0 * rng.random(64), np.inf)
         out = np.full(9 * count + 20, 0xAA, np.uint8)
         got_w, got_lo = wait.copy(), lo.copy()
-        level = a
-        if static:
-            level = np.empty(64)
-            static_charge(n0, t_a, inv, a, d, g, o, e, cap, level)
-        k, bad, used = _event_run(variant, got_w, level, d, g, o, e, gn, got_lo, n0, t_a, inv,
-                                  cap, floor, out, 3, 9, 8, count)
+        k, bad, used = _event_run(variant, got_w, lam, dlam, e, gn, got_lo, m0, cap, floor, out,
+                                  3, 9, 8, count)
         w, lw, took = wait.copy(), lo.copy(), np.zeros(64, bool)
         want_bad, words = 0, []
         for j in range(count):  # the scalar steps
-            phi = (np.float64(n0 + j) + 0.5 - t_a) * inv
-            w = w - (level if static else np.minimum((g * (a + d * phi) + o) * e, cap))
+            w = w - (lam if static else np.minimum(lam + np.float64(m0 + j) * dlam, cap))
             fired = w <= 0.0
             take = fired & (w >= lw)
             new = gn if zero else np.maximum(w + gn, floor * e)
