@@ -29,6 +29,7 @@ POLL_S = 0.2
 GRACE_S = 5.0
 
 _parent_pid: int | None = None
+_initialized = False  # init_worker has returned (a SIGTERM then unwinds)
 _orphaned = threading.Event()
 
 
@@ -79,6 +80,8 @@ def _exit_on_sigterm(signum, frame):
     exit quietly with status 143; an idle worker's exception would print a traceback.
     During llvmlite's code the exit is tried again :data:`RETRY_S` later (SIGALRM), once
     the callback it may be in has returned."""
+    if not _initialized:  # still in init_worker: nothing to unwind, and the pool
+        os._exit(128 + signal.SIGTERM)  # would print any exception's traceback
     if _in_llvmlite(frame):
         signal.signal(signal.SIGALRM, _exit_on_sigterm)
         signal.setitimer(signal.ITIMER_REAL, RETRY_S)
@@ -89,13 +92,17 @@ def _exit_on_sigterm(signum, frame):
 def init_worker(parent_pid: int, started=None) -> None:
     """Pool initializer: signal handling, parent watch and the rename guard; then sets
     the event ``started`` (when given), which tells the parent a worker got this far."""
-    global _parent_pid
+    global _parent_pid, _initialized
+    # a SIGTERM before the handlers are in place waits until they are, and then
+    # exits at once: an exception raised in an initializer is printed by the pool
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
     from spikesim.cli_guard import install_signal_handlers
     from spikesim.io.atomic import set_rename_guard
 
     _parent_pid = int(parent_pid)
     install_signal_handlers()
     signal.signal(signal.SIGTERM, _exit_on_sigterm)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
     # Ctrl-C reaches the whole process group; the parent stops its workers itself
     # (SIGTERM, after cancelling what is queued).  A worker that Ctrl-C stopped in the
     # middle of a result's send could leave the others waiting for the result queue
@@ -107,3 +114,4 @@ def init_worker(parent_pid: int, started=None) -> None:
     threading.Thread(target=_watch, name="spikesim-parent-watch", daemon=True).start()
     if started is not None:
         started.set()
+    _initialized = True
