@@ -726,6 +726,9 @@ def linear_charge(t_a, inv, level, slope, gain, offset, electrons, lam, dlam):
 #: defaults, one thread, AMD EPYC host) the loop was 3 % faster with a key
 #: frame every 64 readouts, the walk 3 % faster every 128 and 4 % every 256.
 MOVING_WALK_MIN = 128
+#: Longest run of changing charge walked: ``k(k − 1)/2`` of :func:`charge_sum`
+#: is exact in float64 below it.
+WALK_MAX = 2**26
 
 
 @njit(inline="always", **_opts)
@@ -734,7 +737,8 @@ def walkable(lam, dlam, m0, count, lam_first):
     the one ``m0`` readouts after its segment's reference (``lam``, ``dlam``:
     :func:`linear_charge`): ``(walk, moving)``, ``walk`` where every lane's
     charge at both ends of the run is within [0, :data:`EXACT_CHARGE`] and
-    ``lam`` within :data:`EXACT_WAIT` (so, the charge being linear, every
+    ``lam`` within :data:`EXACT_WAIT`, and a changing charge's run shorter
+    than :data:`WALK_MAX` (so, the charge being linear, every
     charge of the run and every product ``m·dlam`` is exact on the grid and
     :func:`charge_at` adds nothing to it: its cap lies far above), ``moving``
     where some ``dlam`` is non-zero.  ``lam_first`` takes each lane's charge
@@ -752,7 +756,8 @@ def walkable(lam, dlam, m0, count, lam_first):
         lam_first[lane] = first if first < LAMBDA_MAX else LAMBDA_MAX
         moving += 0 if d == 0.0 else 1
         ok += 1 if ((ref <= EXACT_WAIT) & (first >= 0.0) & (first <= EXACT_CHARGE)
-                    & (last >= 0.0) & (last <= EXACT_CHARGE)) else 0
+                    & (last >= 0.0) & (last <= EXACT_CHARGE)
+                    & ((d == 0.0) | (count < WALK_MAX))) else 0
     return ok == BLOCK, moving != 0
 
 
