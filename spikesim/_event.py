@@ -80,6 +80,7 @@ from spikesim.rng import (
     normal,
     pixel_bits,
     readout_key,
+    uint_of_52,
     uniform,
 )
 
@@ -418,7 +419,7 @@ def lane_draw(need, k, e, kw, kj, reset, jittered, jitter):
     g, accepted = _gamma_candidate(hd, readout_key(kw, k + _U1))
     if reset == MODULO:
         h0 = np.ceil(lead + e)
-        limit = _LIMIT_OF[np.uint64(min(h0, top))]  # (read unconditionally: branch-free)
+        limit = _LIMIT_OF[uint_of_52(min(h0, top))]  # (read unconditionally: branch-free)
         wmin = lowest_wait(g, limit if h0 <= top else -np.inf)  # (g > 0 where OK)
     else:
         wmin = -np.inf
@@ -435,7 +436,7 @@ def _gamma_candidate(h, bits):
     top = np.float64(TABLE_SHAPES - 1)
     x, x_tail = _normal_body(bits)
     u = uniform(pixel_bits(bits, _U1))
-    c = _C_OF[np.uint64(min(h, top))]  # 1/√(9(h − ⅓)), read
+    c = _C_OF[uint_of_52(min(h, top))]  # 1/√(9(h − ⅓)), read
     t = 1.0 + c * x
     g = (h - _THIRD) * (t * t * t)
     return g, ((h > SMALL_SHAPE) & (h <= top) & (not x_tail)

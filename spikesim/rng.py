@@ -186,6 +186,25 @@ def pixel_bits(rkey, pixel):
     return mix64(np.uint64(rkey) ^ (np.uint64(pixel) * _G2))
 
 
+_TWO52_BITS = np.uint64(0x4330000000000000)  # the bits of 2.0**52
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def float_of_52(v):
+    """``float64(v)`` for an integer ``0 ≤ v < 2**52``, exactly: ``v`` put into
+    the mantissa of 2⁵² and 2⁵² subtracted.  The same value as the conversion,
+    but an integer-or and a subtraction, which vectorise on AVX2 (it has no
+    64-bit integer-to-float instruction, so LLVM made such loops scalar)."""
+    return _bits_f64(v | _TWO52_BITS) - 2.0**52
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def uint_of_52(x):
+    """``uint64(x)`` for an integer-valued float ``0 ≤ x < 2**52``, exactly
+    (the inverse of :func:`float_of_52`: branch-free, so it vectorises)."""
+    return _f64_bits(x + 2.0**52) & _MANT
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def uniform(bits):
     """Uniform deviate in (0, 1) from the top 52 bits: ``(k + ½)·2**-52``.
@@ -193,7 +212,7 @@ def uniform(bits):
     The grid is symmetric about ½ and ``1 − u`` is exact, which keeps the
     normal deviates symmetric in the far tails.
     """
-    return (np.float64(bits >> _S12) + 0.5) * _TWO_M52
+    return (float_of_52(bits >> _S12) + 0.5) * _TWO_M52
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -334,7 +353,7 @@ def _normal_body(bits):
     pair = _ICDF_PAIRS[k]
     q = np.float64(_bits_f32(np.uint32(pair & _LOW32)))
     d = np.float64(_bits_f32(np.uint32(pair >> _S32)))
-    t = (np.float64((bits >> _S12) & _POS_MASK) + 0.5) * _TWO_M40
+    t = (float_of_52((bits >> _S12) & _POS_MASK) + 0.5) * _TWO_M40
     return q + d * t, (k - _TAIL_LO) >= _BODY_SPAN  # unsigned wrap
 
 

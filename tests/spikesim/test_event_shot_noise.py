@@ -350,23 +350,29 @@ def test_drawn_ahead_cycle_gives_the_scalar_cycle_where_it_applies(reset, e, bri
 
 
 @pytest.mark.parametrize("reset", [0, 1, 2])
-@pytest.mark.parametrize("n_stale", [0, 5, 64])
-def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(reset, n_stale):
+@pytest.mark.parametrize("n_stale", [0, 3, 5, 30, 64])
+@pytest.mark.parametrize("jitter", [0.006, 0.0])
+def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(
+        reset, n_stale, jitter):
     """:func:`event_refill` gives every stale lane :func:`prepare_lane`'s draw
-    bit for bit, leaves the fresh lanes' cache alone, and makes every lane fresh."""
-    rng = np.random.default_rng(reset * 7 + n_stale)
+    bit for bit, leaves the fresh lanes' cache alone, and makes every lane
+    fresh: with and without jitter, small shapes, shapes beyond the tables,
+    needs ≤ 0 and cycles from 2⁵² − 1 to 2⁵³ − 2."""
+    rng = np.random.default_rng(reset * 7 + n_stale + int(jitter * 1000))
     ev = np.zeros((4, 64))
     ev[_event.NEED] = 1000.0 * (0.2 + rng.random(64))
+    ev[_event.NEED, :4] = [3.5, -2.0, float(_event.TABLE_SHAPES) + 3.5, 0.0]
     ev[_event.CYCLE] = rng.integers(0, 9000, 64).astype(np.float64)
+    ev[_event.CYCLE, 4:7] = [2.0**52 - 1.0, 2.0**52, 2.0**53 - 2.0]  # (cycle + 1 exact)
     electrons = 1000.0 * (1.0 + 0.05 * rng.standard_normal(64))
     wf = np.full((_event.EV_WORK_F, 64), 7.5)
     wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
     wu[_event.LKW] = rng.integers(0, 2**63, 64, dtype=np.uint64)
     wu[_event.LKJ] = rng.integers(0, 2**63, 64, dtype=np.uint64)
-    stale_lanes = rng.choice(64, n_stale, replace=False)
+    stale_lanes = rng.choice(64, n_stale, replace=False) if n_stale < 30 else (
+        np.r_[np.arange(7), rng.choice(np.arange(7, 64), n_stale - 7, replace=False)])
     stale = sum(1 << int(k) for k in stale_lanes)
     wu[_event.MASKS, _event.FRESH] = ~np.uint64(stale)
-    jitter = 0.006
     _event.event_refill(electrons, ev, reset, jitter, wf, wu)
     assert int(wu[_event.MASKS, _event.FRESH]) == 2**64 - 1
     for lane in range(64):

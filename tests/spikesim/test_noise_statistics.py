@@ -341,3 +341,17 @@ def test_log_factorial_table_equals_lgamma_inside_and_beyond_the_table():
     for k in [0.0, 1.0, 2.0, 9.0, 10.0, 57.0, 480.0, n - 1.0, float(n), n + 7.0, 1e6]:
         got, want = both(k)
         assert got == want, k
+
+
+def test_float_of_52_and_uint_of_52_are_the_exact_conversions():
+    """The vectorisable conversions of :mod:`spikesim.rng` equal the plain ones
+    on their whole range [0, 2⁵²): both ends, powers of two and their
+    neighbours, and random values (the normals and uniforms use them)."""
+    edges = [0, 1, 2, 3, 2**52 - 1, 2**52 - 2, 2**40 - 1, 2**40, 4095, 4096]
+    edges += [2**k + d for k in range(1, 52) for d in (-1, 0, 1)]
+    rand = np.random.default_rng(0).integers(0, 2**52, 20_000, dtype=np.uint64)
+    ints = np.concatenate([np.array(edges, dtype=np.uint64), rand])
+    floats = ints.astype(np.float64)
+    assert [rng.float_of_52(v) for v in ints] == floats.tolist()
+    assert [int(rng.uint_of_52(x)) for x in floats] == ints.tolist()
+    assert int(rng.uint_of_52(-0.0)) == 0
