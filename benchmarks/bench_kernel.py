@@ -11,7 +11,7 @@ records the peak resident memory of a fresh process streaming a long run.
 
 Run::
 
-    .venv/bin/python benchmarks/bench_kernel.py            # full size (~3 min)
+    .venv/bin/python benchmarks/bench_kernel.py            # full size (3–9 min, 2 cores)
     .venv/bin/python benchmarks/bench_kernel.py --quick    # small smoke run
     .venv/bin/python benchmarks/bench_kernel.py --ratios-only [--size 500]
         # only physical (per-spike and per-readout shot noise) / paper GN σ=10,
