@@ -719,6 +719,8 @@ def _bit_count(name, flag):
 
 lowest_bit_index = _bit_count("llvm.cttz", 1)
 lowest_bit_index.__doc__ = """Index of the lowest set bit of a non-zero uint64 (``cttz``)."""
+popcount64 = _bit_count("llvm.ctpop", None)
+popcount64.__doc__ = """Number of set bits of a uint64 (``ctpop``)."""
 
 
 

@@ -350,14 +350,18 @@ def test_drawn_ahead_cycle_gives_the_scalar_cycle_where_it_applies(reset, e, bri
 
 
 @pytest.mark.parametrize("reset", [0, 1, 2])
-@pytest.mark.parametrize("n_stale", [0, 3, 5, 30, 64])
+@pytest.mark.parametrize("n_stale", [0, 3, 5, 7, 8, 9, 30, 63, 64])
 @pytest.mark.parametrize("jitter", [0.006, 0.0])
+@pytest.mark.parametrize("packed", [False, True])
 def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(
-        reset, n_stale, jitter):
+        reset, n_stale, jitter, packed):
     """:func:`event_refill` gives every stale lane :func:`prepare_lane`'s draw
     bit for bit, leaves the fresh lanes' cache alone, and makes every lane
     fresh: with and without jitter, small shapes, shapes beyond the tables,
-    needs ≤ 0 and cycles from 2⁵² − 1 to 2⁵³ − 2."""
+    needs ≤ 0 and cycles from 2⁵² − 1 to 2⁵³ − 2; one by one below
+    ``PACKED_REFILL_MIN`` stale lanes, packed from there (the counts around it
+    and around whole groups), and packed at every count when called directly
+    (``packed``)."""
     rng = np.random.default_rng(reset * 7 + n_stale + int(jitter * 1000))
     ev = np.zeros((4, 64))
     ev[_event.NEED] = 1000.0 * (0.2 + rng.random(64))
@@ -369,12 +373,17 @@ def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(
     wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
     wu[_event.LKW] = rng.integers(0, 2**63, 64, dtype=np.uint64)
     wu[_event.LKJ] = rng.integers(0, 2**63, 64, dtype=np.uint64)
-    stale_lanes = rng.choice(64, n_stale, replace=False) if n_stale < 30 else (
+    stale_lanes = rng.choice(64, n_stale, replace=False) if n_stale < 7 else (
         np.r_[np.arange(7), rng.choice(np.arange(7, 64), n_stale - 7, replace=False)])
     stale = sum(1 << int(k) for k in stale_lanes)
     wu[_event.MASKS, _event.FRESH] = ~np.uint64(stale)
-    _event.event_refill(electrons, ev, reset, jitter, wf, wu)
-    assert int(wu[_event.MASKS, _event.FRESH]) == 2**64 - 1
+    if packed and n_stale:
+        _event._packed_refill(reset, jitter > 0.0, np.uint64(stale), electrons, ev, jitter, wf,
+                              wu)
+    else:
+        _event.event_refill(electrons, ev, reset, jitter, wf, wu)
+        assert int(wu[_event.MASKS, _event.FRESH]) == 2**64 - 1
+    assert _event.PACKED_REFILL_MIN == 8  # (the counts above straddle it)
     for lane in range(64):
         cached = wf[[_event.GNEXT, _event.DNEXT, _event.WMIN], lane]
         if stale >> lane & 1:

@@ -23,6 +23,7 @@ from spikesim._simd import (
     lowest_bit_index,
     paper_carry_add64,
     paper_carry_add64_zero,
+    popcount64,
     prefer_wide_vectors,
     store_word,
 )
@@ -70,6 +71,11 @@ def _outside(values, shift, low, span):
 @njit
 def _ctz(m):
     return lowest_bit_index(m)
+
+
+@njit
+def _popcount(m):
+    return popcount64(m)
 
 
 
@@ -268,6 +274,8 @@ def test_lane_masks_and_lowest_bit():
     assert int(_outside(values, 52, 16, 4064)) == _mask([1, 1, 0, 0, 0, 1, 1] + [0] * 57)
     for bit in (0, 1, 37, 63):
         assert int(_ctz(np.uint64(1 << bit) | np.uint64(1 << 63))) == bit
+    for m in (0, 1, 2**63, 2**64 - 1, 0x0F0F_0000_8000_0001):
+        assert int(_popcount(np.uint64(m))) == bin(m).count("1")
 
 
 def test_paper_zero_reset_step_clears_exactly_the_lanes_that_carried():
