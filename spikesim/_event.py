@@ -605,11 +605,9 @@ def _make_packed_refill(reset, jittered):
     return packed_refill
 
 
-_PACKED = {(r, j): _make_packed_refill(r, j) for r in (MODULO, SUBTRACT, ZERO)
-           for j in (False, True)}
-_PACKED_M0, _PACKED_M1 = _PACKED[MODULO, False], _PACKED[MODULO, True]
-_PACKED_S0, _PACKED_S1 = _PACKED[SUBTRACT, False], _PACKED[SUBTRACT, True]
-_PACKED_Z0, _PACKED_Z1 = _PACKED[ZERO, False], _PACKED[ZERO, True]
+_PACKED_M0, _PACKED_M1, _PACKED_S0, _PACKED_S1, _PACKED_Z0, _PACKED_Z1 = (
+    _make_packed_refill(reset, jittered) for reset in (MODULO, SUBTRACT, ZERO)
+    for jittered in (False, True))
 
 
 @njit(inline="always", **_opts)
@@ -1052,4 +1050,3 @@ def _direct_lanes(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wu, words
         wait[lane] = w
         need[lane] = nd
         cyc[lane] = np.float64(c)
-
