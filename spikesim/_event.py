@@ -547,8 +547,9 @@ def _refill_lanes(reset, jittered, stale, electrons, ev, jitter, wf, wu):
 
 #: Stale lanes from which a refill packs them into rows and draws them on
 #: vectors.  Per lane (cache-resident, one thread, AMD EPYC host, 256-bit
-#: vectors): 16.4 ns packed against 21.6 one by one at 30 stale lanes, 18.7
-#: against 23.3 at 16.
+#: vectors, median [range] of 5): 17.2 [17.2–17.4] ns packed against 21.6
+#: [21.3–21.7] one by one at 30 stale lanes, 20.5 [20.5–20.7] against 22.0
+#: [22.0–22.0] at 16.
 PACKED_REFILL_MIN = 8
 #: The packed rows are drawn in whole groups of this many (the padding copies
 #: the first stale lane), so that no lane falls to the vector loop's scalar
