@@ -77,7 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("--size", type=int, default=None, help="frame side in pixels (default 256)")
     dm.add_argument("--limit", type=int, default=None, help="only the first N sequences")
     dm.add_argument("--methods", default=None,
-                    help="comma-separated methods (default: four classical pipelines and sjdd)")
+                    help="comma-separated methods (default: four classical pipelines and "
+                         "SJDD-Net: sjdd@sjdd-lite on a CPU, sjdd on CUDA)")
     _runtime_options(dm)
     _train_parser(sub)
     _reconstruct_parser(sub)

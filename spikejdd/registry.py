@@ -43,6 +43,7 @@ import re
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -63,6 +64,8 @@ AMBIENT_OPTIONS = ("rate", "device", "threads", "ensemble")
 
 _NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_.\-+]*$")
 _TARGET_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
+#: Where the shipped weights live (``spikejdd.models.WEIGHTS_DIR``, without importing torch).
+_WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 
 
 def _accepted(fn: Callable) -> tuple[set[str], bool]:
@@ -277,6 +280,9 @@ class Registry:
             if not weights or not (var_kw or "weights" in names):
                 raise bad_value("method", name, "NAME@WEIGHTS where NAME takes weights "
                                 "(e.g. sjdd@runs/x/best.pt or sjdd@sjdd-lite)")
+            check = getattr(method.fn, "check_weights", None)
+            if check is not None:  # refused now, not when the method first runs
+                check(weights)
             return Method(text, method.fn, f"{method.description} [weights {weights}]",
                           {**method.options, "weights": weights})
         if ":" in text:
@@ -291,8 +297,11 @@ class Registry:
         pipe = parse_pipeline(key)
         if pipe is not None:
             return Method(key, pipe, pipe.description)
-        raise bad_value("method", name, f"a registered method {tuple(self.names())}, a pipeline "
-                        f"{PIPELINE_GRAMMAR}, package.module:function or NAME@WEIGHTS")
+        hint = (f" (shipped weights are named as sjdd@{key})"
+                if (_WEIGHTS_DIR / f"{key}.pt").is_file() else "")
+        raise bad_value("method", name, f"a registered method ({', '.join(self.names())}), a "
+                        f"pipeline {PIPELINE_GRAMMAR}, package.module:function or "
+                        f"NAME@WEIGHTS{hint}")
 
     def names(self) -> list[str]:
         """Registered and entry-point names (pipelines are resolved from their names)."""
@@ -318,8 +327,9 @@ class Registry:
 #: The registry every part of spikejdd uses.
 METHODS = Registry("methods", entry_point_group=ENTRY_POINT_GROUP)
 METHODS.register("spikejdd.models.adapter:sjdd_method", name="sjdd",
-                 description="SJDD-Net (AAAI 2024) learned JDD; shipped weights "
-                             "(sjdd@PATH.pt for a checkpoint), 39-readout window")
+                 description="SJDD-Net (AAAI 2024) learned JDD with the shipped sjdd-full "
+                             "weights (sjdd@sjdd-lite: 4x faster on a CPU, 1.3 dB lower; "
+                             "sjdd@PATH.pt for a checkpoint), 39-readout window")
 
 
 # --- functional face (kept for existing callers) ---------------------------

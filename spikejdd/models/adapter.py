@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from spikejdd.models.pretrained import DEFAULT_WEIGHTS, cached_model
+from spikejdd.models.pretrained import DEFAULT_WEIGHTS, cached_model, resolve_weights
 from spikejdd.runtime import ENSEMBLES, check_device, check_ensemble
 from spikesim.cfa import channel_index, mask_planes, normalize_cfa
 from spikesim.errors import SpikeSimValueError, bad_value
@@ -209,3 +209,4 @@ def _sjdd_window(n_readouts: int, weights: str = DEFAULT_WEIGHTS, **_options) ->
 
 
 sjdd_method.window_for = _sjdd_window
+sjdd_method.check_weights = resolve_weights  # the registry checks sjdd@WEIGHTS when named

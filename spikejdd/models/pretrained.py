@@ -30,7 +30,7 @@ __all__ = ["WEIGHTS_DIR", "DEFAULT_WEIGHTS", "list_pretrained", "pretrained_path
 
 WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
 #: Weights used by ``method="sjdd"`` when none are named.
-DEFAULT_WEIGHTS = "sjdd-lite"
+DEFAULT_WEIGHTS = "sjdd-full"
 
 
 def list_pretrained() -> list[str]:

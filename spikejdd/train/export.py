@@ -9,11 +9,15 @@ from spikejdd.models.checkpoints import load_checkpoint, save_checkpoint
 __all__ = ["export_weights"]
 
 
-def export_weights(checkpoint, dest, eval_result: dict | None = None) -> Path:
+def export_weights(checkpoint, dest, eval_result: dict | None = None,
+                   precision: str = "float32") -> Path:
     """Write a run checkpoint as a shippable one: weights, configuration, data
     description, seed, training summary and ``eval_result`` — no optimizer state.
-    Also writes ``<dest stem>.ref.json``, the reference output of
-    :func:`spikejdd.models.reference_input` used by the tests."""
+    ``precision`` (``"float32"``, ``"float16"`` or ``"int8"``) is how the weights
+    are stored (see :func:`~spikejdd.models.save_checkpoint`; always read back as
+    float32). Also writes ``<dest stem>.ref.json``, the reference output of
+    :func:`spikejdd.models.reference_input` used by the tests, computed from the
+    weights as stored."""
     from spikejdd.models import load_model, write_reference
 
     blob = load_checkpoint(checkpoint)
@@ -22,6 +26,7 @@ def export_weights(checkpoint, dest, eval_result: dict | None = None) -> Path:
     summary = {k: tr.get(k) for k in ("step", "epoch", "best_psnr", "history", "train_config")}
     dest = Path(dest)
     save_checkpoint(dest, model, data=blob.get("data"), seed=blob.get("seed"),
-                    eval=dict(blob.get("eval") or {}, **(eval_result or {})), train=summary)
-    write_reference(model, dest.with_suffix(".ref.json"))
+                    eval=dict(blob.get("eval") or {}, **(eval_result or {})), train=summary,
+                    precision=precision)
+    write_reference(load_model(dest), dest.with_suffix(".ref.json"))
     return dest

@@ -93,6 +93,18 @@ def collate(samples: list[dict]) -> dict:
     return out
 
 
+def _one_thread() -> None:
+    """Simulate on one thread in a loader worker: one worker per core already fills the
+    machine, and numba's and OpenCV's own pools of one thread per core in each of, say,
+    14 workers would oversubscribe a 16-core machine 14 times (the bits do not depend on
+    the thread count)."""
+    import cv2
+    import numba
+
+    numba.set_num_threads(1)
+    cv2.setNumThreads(1)
+
+
 class OnlineSpikeDataset(IterableDataset):
     """Batches simulated on the fly for steps ``start_step, start_step + 1, …`` (see module doc).
 
@@ -137,6 +149,8 @@ class OnlineSpikeDataset(IterableDataset):
     def __iter__(self):
         info = torch.utils.data.get_worker_info()
         k, n = (0, 1) if info is None else (info.id, info.num_workers)
+        if info is not None:
+            _one_thread()
         step = self.start_step + k
         while self.stop_step is None or step < self.stop_step:
             yield self.batch(step)

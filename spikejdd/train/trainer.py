@@ -368,8 +368,8 @@ class Trainer:
         blob = load_checkpoint(path)
         if blob["config"] != self.mcfg.to_dict():
             raise bad_value("init", str(weights), "weights of the same model configuration "
-                            f"as --model {self.cfg.model} (and its --set overrides; "
-                            f"{config_difference(blob['config'], self.mcfg.to_dict())})")
+                            f"as --model {self.cfg.model} and its --set overrides "
+                            f"({config_difference(blob['config'], self.mcfg.to_dict())})")
         self.model.load_state_dict(blob["state_dict"])
 
     def resume_path(self) -> str | None:

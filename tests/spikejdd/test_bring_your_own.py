@@ -332,6 +332,24 @@ def test_a_failing_user_method_is_named_not_reported_as_a_bug(data39, tmp_path, 
     sys.modules.pop("failing_meth", None)
 
 
+def test_unknown_weights_are_refused_before_any_method_runs(data39, tmp_path, capsys):
+    from spikejdd.registry import get_method
+
+    with pytest.raises(SpikeSimValueError, match=r"weights='sjdd-xl' is invalid: expected a "
+                                                  r"shipped name \['sjdd-full', 'sjdd-lite'\]"):
+        get_method("sjdd@sjdd-xl")
+    with pytest.raises(SpikeSimValueError, match=r"\(shipped weights are named as "
+                                                  r"sjdd@sjdd-lite\)"):
+        get_method("sjdd-lite")
+    assert get_method("sjdd@sjdd-lite").options == {"weights": "sjdd-lite"}
+    out = tmp_path / "x"
+    assert main(["evaluate", "--data", str(data39), "--out", str(out), "--quiet",
+                 "--methods", "tfp+bilinear,sjdd@sjdd-xl"]) == 1
+    cap = capsys.readouterr()
+    assert "sjdd-xl" in cap.err and len(cap.err.strip().splitlines()) == 1
+    assert "tfp+bilinear" not in cap.out and not out.with_suffix(".md").exists()
+
+
 def test_evaluate_keeps_the_results_of_methods_beside_a_failing_one(data39, tmp_path, capsys,
                                                                     monkeypatch):
     """One failing method among several: the others are scored and reported, the

@@ -57,6 +57,8 @@ def test_shape_mismatch_is_reported(tmp_path):
 def test_missing_file_and_garbage(tmp_path):
     with pytest.raises(Exception, match="does not exist"):
         load_checkpoint(tmp_path / "nope.pt")
+    with pytest.raises(Exception, match="is a folder: name a checkpoint file in it"):
+        load_checkpoint(tmp_path)
     bad = tmp_path / "bad.pt"
     bad.write_bytes(b"not a checkpoint")
     with pytest.raises(CheckpointError, match="cannot read"):
@@ -133,3 +135,70 @@ def test_converter_is_strict():
     wrong["module.mus.0"] = torch.zeros(2)
     with pytest.raises(CheckpointError, match=r"shape mismatches: mus\.0"):
         convert_published_state_dict(wrong)
+
+
+@pytest.mark.parametrize("precision", ["float16", "int8"])
+def test_reduced_precision_stores_less_and_reads_back_float32_within_its_step(tmp_path,
+                                                                              precision):
+    torch.manual_seed(4)
+    model = SJDDNet(TINY).eval()
+    with torch.no_grad():  # a channel of zeros must stay zero (its scale is clamped, not 0)
+        model.ccp.tail.weight[0].zero_()
+    full = save_checkpoint(tmp_path / "full.pt", model)
+    path = save_checkpoint(tmp_path / "small.pt", model, precision=precision)
+    raw = torch.load(path, weights_only=True)
+    assert raw["format_version"] == (2 if precision == "int8" else 1)
+    stored = {str(v.dtype) for v in raw["state_dict"].values() if v.dtype != torch.int64}
+    assert stored == {"torch.float16"}
+    if precision == "int8":  # the integers are kept out of state_dict: a plain
+        assert {str(v.dtype) for v in raw["int8_state"].values()} == {"torch.int8"}
+        with pytest.raises(RuntimeError, match="Missing key"):  # load_state_dict fails loudly
+            SJDDNet(TINY).load_state_dict(raw["state_dict"])
+    assert path.stat().st_size < full.stat().st_size
+    original = model.state_dict()
+    back = load_checkpoint(path)["state_dict"]
+    assert not {"int8_scales", "int8_state"} & set(load_checkpoint(path))
+    loaded = load_model(path).state_dict()
+    for k, w in original.items():
+        v = back[k]
+        assert loaded[k].dtype == w.dtype and v.shape == w.shape, k
+        assert torch.equal(loaded[k], v.to(w.dtype)), k
+        v = v.to(w.dtype)
+        if not w.is_floating_point():
+            assert torch.equal(v, w), k
+        elif precision == "int8" and w.ndim >= 2:
+            peak = w.abs().amax(dim=tuple(range(1, w.ndim)), keepdim=True)
+            assert torch.all((v - w).abs() <= peak / 254 * (1 + 1e-6)), k  # half a step
+            torch.testing.assert_close(v.abs().amax(dim=tuple(range(1, w.ndim)), keepdim=True),
+                                       peak, rtol=1e-6, atol=0)  # each channel's peak is exact
+        else:
+            assert torch.all((v - w).abs() <= w.abs() * 2.0**-11 + 2.0**-24), k
+    assert torch.count_nonzero(back["ccp.tail.weight"][0]) == 0
+    x, m = make_inputs(TINY.n_readouts, 12, 10)
+    with torch.no_grad():
+        torch.testing.assert_close(load_model(path)(x, m)[0], model(x, m)[0], rtol=0, atol=0.05)
+
+
+def test_bad_precision_and_a_scale_without_its_weight_are_clear_errors(tmp_path):
+    from spikesim.errors import SpikeSimValueError
+
+    model = SJDDNet(TINY)
+    with pytest.raises(SpikeSimValueError, match=r"precision='int4' is invalid"):
+        save_checkpoint(tmp_path / "a.pt", model, precision="int4")
+    assert not (tmp_path / "a.pt").exists()
+    path = save_checkpoint(tmp_path / "b.pt", model, precision="int8")
+    blob = torch.load(path, weights_only=True)
+    blob["int8_scales"]["nothing.weight"] = torch.ones(1)
+    torch.save(blob, path)
+    with pytest.raises(CheckpointError, match=r"do not pair up: \['nothing.weight'\]"):
+        load_checkpoint(path)
+    del blob["int8_scales"]["nothing.weight"]
+    key = next(iter(blob["int8_state"]))
+    blob["state_dict"][key] = torch.zeros(1)
+    torch.save(blob, path)
+    with pytest.raises(CheckpointError, match="is not int8 or is stored twice"):
+        load_checkpoint(path)
+    blob["format_version"] = 3
+    torch.save(blob, path)
+    with pytest.raises(CheckpointError, match="upgrade spikejdd"):
+        load_checkpoint(path)

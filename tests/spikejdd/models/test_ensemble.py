@@ -11,7 +11,7 @@ import spikejdd as sj
 import spikesim as ss
 from spikejdd.models import TorchMethod, run_ensemble, sjdd_method
 from spikejdd.models.adapter import model_inputs
-from spikejdd.models.pretrained import cached_model
+from spikejdd.models.pretrained import DEFAULT_WEIGHTS, cached_model
 from spikesim.cfa import channel_index, mask_planes
 from spikesim.errors import SpikeSimValueError
 
@@ -86,7 +86,7 @@ def test_one_view_is_the_model_bit_for_bit():
     stream = ss.simulate(ss.scenes.procedural("fan", size=(18, 22), speed=300.0), sensor, 41,
                          seed=2, gt_readouts=[])
     spikes = stream.unpack()
-    model = cached_model("sjdd-lite", "cpu")
+    model = cached_model(DEFAULT_WEIGHTS, "cpu")
     x, m = model_inputs(spikes, "GRBG", 20, model.config.n_readouts)
     with torch.inference_mode():
         plain = model(x, m)[0][0].clamp(0, 1).permute(1, 2, 0).numpy()

@@ -117,6 +117,28 @@ def test_loader_stream_is_the_same_for_any_worker_count_and_resumes():
     assert torch.all(odd["mask"].sum(dim=1) == 1)
 
 
+def test_a_loader_worker_simulates_on_one_thread_and_the_main_process_keeps_its_own(
+        monkeypatch):
+    import types
+
+    import cv2
+    import numba
+
+    before = numba.get_num_threads(), cv2.getNumThreads()
+    ds = OnlineSpikeDataset(batch_size=1, crop=8, window=9, seed=4, stop_step=1)
+    try:
+        next(iter(ds))  # this process: threads untouched
+        assert (numba.get_num_threads(), cv2.getNumThreads()) == before
+        monkeypatch.setattr(torch.utils.data, "get_worker_info",
+                            lambda: types.SimpleNamespace(id=0, num_workers=1))
+        batch = next(iter(ds))  # as a worker: one thread for numba and OpenCV
+        assert (numba.get_num_threads(), cv2.getNumThreads()) == (1, 1)
+        torch.testing.assert_close(batch["spikes"], ds.batch(0)["spikes"], rtol=0, atol=0)
+    finally:
+        numba.set_num_threads(before[0])
+        cv2.setNumThreads(before[1])
+
+
 def test_validation_sweep_has_static_and_slow_scenes_on_held_out_pictures():
     frames = validation_frames(size=(8, 12), speeds=(0.0, 150.0, 3000.0),
                                levels=["GN10", "GPN-rand"], context=11)
