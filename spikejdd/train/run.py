@@ -131,12 +131,15 @@ def train(cfg: TrainConfig | dict) -> dict:
     bar = tqdm(total=cfg.steps, initial=tr.state.step, desc="train",
                disable=not (main and cfg.progress))
     running, seen, t_last = tr.state.running_loss, 0, time.time()
+    if main and cfg.validation_kind() == "sweep":
+        # before the loader's workers start: on a cold numba cache, simulating the sweep
+        # here compiles the kernels it uses once, and the workers load them from the
+        # cache instead of each compiling its own (measured in docs/sjdd.md)
+        tr.validation_frames()
     batches = tr.batches() if tr.state.step < cfg.steps else iter(())
     try:
         for batch in batches:
-            if t_train is None:  # the set-up ends: the kernels the validation uses compiled too
-                if main and cfg.validation_kind() == "sweep":
-                    tr.validation_frames()
+            if t_train is None:  # the set-up ends
                 t_train = time.time()
                 tr.state.setup_minutes = setup_minutes()
             with deferred_stops():  # a stop waits for the step's end: the state saved is whole
