@@ -50,14 +50,11 @@ def run_demo(out_dir: str | Path = "demo_out", size: int | None = None,
     device, and torch threads per process (default 1 on the CPU, see
     :func:`spikejdd.runtime.set_threads`); both are checked before any work.
     """
-    from spikejdd.runtime import configure, set_threads
+    from spikejdd.runtime import configure
 
     device, threads = configure(device, threads)
     out = Path(out_dir)
     result = build_demo(out, size=size, limit=limit, progress=progress)
-    # again: the builder sets numba's threads, which under numba's OpenMP layer also
-    # sets torch's (the two share the OpenMP runtime)
-    set_threads(threads, device)
     methods = _default_methods(device) if methods is None else list(methods)
     result["reconstruction"] = _reconstruct(Path(result["data_dir"]), out, methods,
                                             result["window"], progress, device) \

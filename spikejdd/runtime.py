@@ -76,8 +76,15 @@ def check_device(device: str | None, name: str = "device") -> str:
 
 def set_threads(threads: int | None, device: str = "cpu") -> int:
     """Set torch's intra-op threads; ``None`` = :data:`DEFAULT_CPU_THREADS` on the CPU
-    (torch's own default elsewhere).  Returns the number in effect."""
+    (torch's own default elsewhere).  Returns the number in effect.
+
+    numba's thread pool is started first: under numba's OpenMP layer, starting it
+    (at a process's first parallel kernel, e.g. the first simulation) sets the
+    OpenMP thread count that torch shares, and would undo this setting."""
+    import numba
     import torch
+
+    numba.get_num_threads()  # starts numba's threading layer, if not yet started
 
     if threads is None:
         if str(device) != "cpu":

@@ -4,6 +4,7 @@ benchmarked from the CLI next to built-ins on a 39-readout dataset; windows that
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -330,6 +331,25 @@ def test_a_failing_user_method_is_named_not_reported_as_a_bug(data39, tmp_path, 
     assert err.endswith("boom inside my method (--debug shows the traceback)"), err
     assert err.count("--debug") == 1
     sys.modules.pop("failing_meth", None)
+
+
+def test_torch_threads_set_for_methods_survive_a_later_simulation():
+    """numba's OpenMP layer, started by the first simulation in a process, sets the
+    OpenMP thread count torch shares: ``set_threads`` must start it first, or a sweep
+    simulated after ``spikejdd evaluate`` set one thread runs SJDD-Net on all cores."""
+    import subprocess
+
+    code = ("import torch\n"
+            "from spikejdd.runtime import configure\n"
+            "configure('cpu', 1)\n"
+            "import spikesim as ss\n"
+            "ss.simulate(ss.scenes.procedural('coffee', size=(16, 16)),\n"
+            "            ss.Sensor(height=16, width=16, cfa='RGGB'), n_readouts=9, seed=0)\n"
+            "print(torch.get_num_threads())\n")
+    env = dict(os.environ, NUMBA_NUM_THREADS="2")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, timeout=600, check=True).stdout
+    assert out.split()[-1] == "1"
 
 
 def test_unknown_weights_are_refused_before_any_method_runs(data39, tmp_path, capsys):

@@ -14,7 +14,7 @@ def test_demo_runs_end_to_end_small(tmp_path, capsys):
 
     assert main(["demo", "--out", str(out), "--size", "32", "--limit", "3"]) == 0
     # SJDD-Net ran on the demo's one torch thread, although building the data set
-    # numba's threads (which can set torch's through the shared OpenMP runtime)
+    # started numba's threads (which can set torch's through the shared OpenMP runtime)
     assert torch.get_num_threads() == 1
     report = (out / "report.md").read_text()
     summary = json.loads((out / "summary.json").read_text())
