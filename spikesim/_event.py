@@ -309,6 +309,20 @@ def _threshold_at(need, e, eps, reset):
 
 
 @njit(inline="always", **_opts)
+def drop_free_floor(e):
+    """The least drop-free limit (:func:`drop_free_limit`) over every shape
+    ``h0 = ⌈lead + e⌉`` of a modulo firing whose need is positive (``lead`` ∈
+    (−1, 0], so ``⌈e − 1⌉ ≤ h0 ≤ ⌈e⌉``): the limit of ``⌈e − 1⌉`` (it rises
+    with ``h0`` from 23 on), read from the table; −∞ where those shapes are
+    not all between 24 and the table's last.  A lane whose wait at a firing is
+    at least ``−floor`` never needs the limit itself (``lane_draw``'s
+    ``drop_free``)."""
+    lo = np.ceil(e - 1.0)
+    ok = (lo >= 24.0) & (np.ceil(e) <= np.float64(TABLE_SHAPES - 1))
+    return _LIMIT_OF[uint_of_52(lo)] if ok else -np.inf
+
+
+@njit(inline="always", **_opts)
 def lowest_wait(g, limit):
     """The lowest wait at a modulo firing for which ``wait + g`` (``g`` > 0) is
     the new wait: ``−wait`` within the drop-free ``limit`` and ``wait + g >
@@ -382,20 +396,29 @@ def fire_cycle(wait, need, cycle, e, reset, jitter, lk_wait, lk_jitter, key_resi
 #: then a packed refill's rows (:func:`_packed_refill`: the stale lanes' need,
 #: cycle and electrons, and their draws).
 GNEXT, DNEXT, WMIN, P_NEED, P_CYCLE, P_E, P_G, P_D, P_W = range(9)
-EV_WORK_F = 9
+#: A packed walk's rows (:func:`_packed_walk`): each row's wait, need,
+#: electrons, charge at the run's first readout, its change per readout and
+#: the reciprocal of a constant one, readouts done, and the
+#: bits of its current cycle (jitter, normal, uniform).
+W_WAIT, W_NEED, W_E, W_LAM, W_DLAM, W_INV, W_DONE, W_EPS, W_X, W_U = range(9, 19)
+EV_WORK_F = 19
 #: Rows of its uint64 work array (``EV_WORK_U``, 64): the block's wait and jitter
 #: lane keys, :func:`first_waits`' scratch, the cache's mask (row
 #: :data:`MASKS`, word :data:`FRESH`), then a packed refill's rows (the stale
 #: lanes' keys, whether each draw holds, and each row's lane).
 LKW, LKJ, OK, MASKS, P_KW, P_KJ, P_OK, P_LANE = range(8)
-EV_WORK_U = 8
+#: A packed walk's rows: each row's cycle, wait and jitter keys, its normals'
+#: tail flag, its lane, its status in the round, and the spike word and bit
+#: of its firing in the round (bit 0 where it did not fire).
+W_CYCLE, W_KW, W_KJ, W_TAIL, W_LANE, W_STATUS, W_WORD, W_BIT = range(8, 16)
+EV_WORK_U = 16
 #: Word of row :data:`MASKS`: the lanes whose cache was made for their current
 #: cycle, ready or not (the others are *stale*).
 FRESH = 0
 
 
 @njit(inline="always", **_opts)
-def lane_draw(need, k, e, kw, kj, reset, jittered, jitter):
+def lane_draw(need, k, e, kw, kj, reset, jittered, jitter, drop_free=False):
     """The common case of :func:`fire_cycle` that does not depend on the wait,
     for one lane in cycle ``k`` (a uint64 counter; ``kw``, ``kj`` its wait and
     jitter lane keys): ``(g, d, wmin, ok)``, the first Marsaglia–Tsang
@@ -410,23 +433,56 @@ def lane_draw(need, k, e, kw, kj, reset, jittered, jitter):
     subtract, clamped) or ``g`` (zero) is then :func:`fire_cycle`'s new wait
     where ``wait`` ≥ ``wmin``, bit for bit (:func:`apply_cached`).
 
+    ``drop_free`` (modulo, a compile-time constant): the caller has checked
+    that the lane's wait at a firing cannot fall below ``−``
+    :func:`drop_free_floor` ``(e)`` (every readout's charge is at most that),
+    so the drop-free limit holds for every shape a positive need can give and
+    is not read: ``wmin`` is ``−g``'s next float up, and a need ≤ 0 (whose
+    shape the floor does not cover) is left to :func:`prepare_lane`.
+
     Branch-free, so a loop of it over contiguous rows vectorises
-    (:func:`_packed_refill`)."""
-    top = np.float64(TABLE_SHAPES - 1)
+    (:func:`_packed_refill`).  It is :func:`lane_finish` of
+    :func:`lane_bits`, which the walk (:func:`_walk_lane`) calls one firing
+    apart."""
+    eps, x, u, tail = lane_bits(k, kw, kj, jittered, jitter)
+    return lane_finish(need, e, eps, x, u, tail, reset, drop_free)
+
+
+@njit(inline="always", **_opts)
+def lane_bits(k, kw, kj, jittered, jitter):
+    """The part of :func:`lane_draw` that depends on the cycle ``k`` and the
+    keys alone: ``(eps, x, u, tail)``, the clipped jitter ``ε`` (0 unless
+    ``jittered``), the Marsaglia–Tsang normal ``x`` and uniform ``u`` of
+    :func:`_gamma_candidate`, and whether either normal fell in a tail bin.
+    The walk draws these for a lane's next cycle while it finishes the
+    current one, so the two chains of latencies overlap (a static walk
+    measured 10 % faster)."""
     eps = 0.0
     z_tail = False
     if jittered:
         z, z_tail = _normal_body(readout_key(kj, k))
         eps = min(max(jitter * z, -0.5), 0.5)
+    bits = readout_key(kw, k + _U1)
+    x, x_tail = _normal_body(bits)
+    return eps, x, uniform(pixel_bits(bits, _U1)), z_tail | x_tail
+
+
+@njit(inline="always", **_opts)
+def lane_finish(need, e, eps, x, u, tail, reset, drop_free):
+    """The rest of :func:`lane_draw` from :func:`lane_bits`: ``(g, d, wmin, ok)``."""
+    top = np.float64(TABLE_SHAPES - 1)
     lead, d, hd = _threshold_at(need, e, eps, reset)
-    g, accepted = _gamma_candidate(hd, readout_key(kw, k + _U1))
-    if reset == MODULO:
+    g, accepted = _candidate_of(hd, x, u)
+    if reset == MODULO and drop_free:
+        wmin = _bits_f64(_f64_bits(-g) - _U1)  # lowest_wait without its limit
+        accepted = accepted & (need > 0.0)
+    elif reset == MODULO:
         h0 = np.ceil(lead + e)
         limit = _LIMIT_OF[uint_of_52(min(h0, top))]  # (read unconditionally: branch-free)
         wmin = lowest_wait(g, limit if h0 <= top else -np.inf)  # (g > 0 where OK)
     else:
         wmin = -np.inf
-    return g, d, wmin, accepted & (not z_tail)
+    return g, d, wmin, accepted & (not tail)
 
 
 @njit(inline="always", **_opts)
@@ -436,14 +492,20 @@ def _gamma_candidate(h, bits):
     ``accepted`` says ``g`` is :func:`gamma_integer`'s result bit for bit (shape
     above :data:`SMALL_SHAPE` and within the tables, the normal in the body
     table, accepted by the squeeze); elsewhere the scalar draw decides."""
-    top = np.float64(TABLE_SHAPES - 1)
     x, x_tail = _normal_body(bits)
-    u = uniform(pixel_bits(bits, _U1))
+    g, accepted = _candidate_of(h, x, uniform(pixel_bits(bits, _U1)))
+    return g, accepted & (not x_tail)
+
+
+@njit(inline="always", **_opts)
+def _candidate_of(h, x, u):
+    """:func:`_gamma_candidate` from its normal ``x`` (body table) and uniform
+    ``u``: ``(g, accepted)``, ``accepted`` before the normal's tail flag."""
+    top = np.float64(TABLE_SHAPES - 1)
     c = _C_OF[uint_of_52(min(h, top))]  # 1/√(9(h − ⅓)), read
     t = 1.0 + c * x
     g = (h - _THIRD) * (t * t * t)
-    return g, ((h > SMALL_SHAPE) & (h <= top) & (not x_tail)
-               & squeeze_accepts(u, x * x, c, t))
+    return g, (h > SMALL_SHAPE) & (h <= top) & squeeze_accepts(u, x * x, c, t)
 
 
 @njit(**_opts)
@@ -968,7 +1030,7 @@ def event_direct(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wf, wu, wo
         return
     for k in range(count):
         words[k] = np.uint64(0)
-    _direct_lanes(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wu, words, count)
+    _direct_lanes(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wf, wu, words, count)
     fired = np.uint64(0)
     for k in range(count):
         fired |= words[k]
@@ -980,74 +1042,375 @@ def event_direct(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wf, wu, wo
 
 
 @njit(inline="always", **_opts)
-def _direct_lanes(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wu, words, count):
+def _direct_lanes(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wf, wu, words, count):
     """:func:`event_direct`'s walk.  A lane's wait, need and cycle stay in
     registers between its firings; the cycle as an integer (a float64 → uint64
-    conversion per draw measured 1.3 ns)."""
+    conversion per draw measured 1.3 ns).  A modulo lane whose charge stays
+    within :func:`drop_free_floor` in the whole run is walked without the
+    drop-free limit (``lane_draw``'s ``drop_free``; its wait at a firing is at
+    least minus that readout's charge, the wait before it being ≥ 0)."""
+    fcount = np.float64(count)
+    free = 0
+    for lane in range(BLOCK):
+        l0 = lam[lane]
+        top = max(l0, l0 + (fcount - 1.0) * dlam[lane])
+        free += 1 if top <= drop_free_floor(electrons[lane]) else 0
+    _packed_walk(ev, lam, dlam, electrons, reset, jitter, reset == MODULO and free == BLOCK, keys,
+                 pix0, wf, wu, words, count)
+
+
+@njit(inline="always", **_opts)
+def _walk_lane(lane, ev, l0, dl, electrons, reset, jitter, keys, pix0, wu, words, fcount,
+               drop_free, p0=0.0):
+    """One lane of :func:`_direct_lanes` (``drop_free`` a compile-time constant),
+    from the run's readout ``p0`` on (a whole float64; the lane's state in
+    ``ev`` is the one at that readout)."""
     wait, need, cyc = ev[WAIT], ev[NEED], ev[CYCLE]
     jittered = jitter > 0.0
-    fcount = np.float64(count)
-    for lane in range(BLOCK):
-        w = wait[lane]
-        l0 = lam[lane]
-        dl = dlam[lane]
-        moving = dl != 0.0
-        if not moving and not l0 > 0.0 and w > 0.0:  # never fires in this run
-            continue
-        bit = _U1 << np.uint64(lane)
-        inv_lam = 1.0 / l0 if l0 > 0.0 else np.inf
-        limit = LINEAR_WAIT if moving else EXACT_WAIT
-        e = electrons[lane]
-        kw, kj = wu[LKW, lane], wu[LKJ, lane]
-        nd = need[lane]
-        c = np.uint64(cyc[lane])
-        p = 0.0  # readouts of the run done
-        lm = l0  # the charge of readout p
-        while True:
-            left = fcount - p
-            if w <= 0.0:
-                k = 1.0  # the same single subtraction as the loop's
-                wfire = w - lm
-            elif w < limit:
-                rest = charge_sum(left, lm, dl) if moving else left * lm
-                if w > rest:  # no firing in the rest of the run
-                    w = w - rest
-                    break
-                if moving:
-                    k = crossing_linear(w, lm, dl, inv_lam, left)
-                    wfire = w - charge_sum(k, lm, dl)
-                else:
-                    k = crossing(w, lm, inv_lam, left)
-                    wfire = w - k * lm
-            else:  # the loop's own subtractions
-                k = 0.0
-                while k < left and w > 0.0:
-                    w = w - (l0 + (p + k) * dl)
-                    k += 1.0
-                if w > 0.0:
-                    break
-                wfire = w
-            words[np.int64(p + k) - 1] |= bit
-            g, d, wmin, ok = lane_draw(nd, c, e, kw, kj, reset, jittered, jitter)
-            nw, valid = apply_cached(wfire, g, wmin if ok else np.inf, e, reset)
-            if valid:
-                w = nw
-                nd = d
-                c += _U1
-            else:
-                wait[lane] = wfire
-                need[lane] = nd
-                cyc[lane] = np.float64(c)
-                _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu)
-                w = wait[lane]
-                nd = need[lane]
-                c = np.uint64(cyc[lane])
-            p += k
-            if p >= fcount:
+    e = electrons[lane]
+    w = wait[lane]
+    moving = dl != 0.0
+    bit = _U1 << np.uint64(lane)
+    inv_lam = 1.0 / l0 if l0 > 0.0 else np.inf
+    limit = LINEAR_WAIT if moving else EXACT_WAIT
+    kw, kj = wu[LKW, lane], wu[LKJ, lane]
+    nd = need[lane]
+    c = np.uint64(cyc[lane])
+    p = p0  # readouts of the run done
+    lm = l0 + p * dl if moving else l0  # the charge of readout p
+    if moving:
+        inv_lam = 1.0 / lm if lm > 0.0 else np.inf
+    eps, x, u, tail = lane_bits(c, kw, kj, jittered, jitter)  # cycle c's bits
+    while True:
+        left = fcount - p
+        if w <= 0.0:
+            k = 1.0  # the same single subtraction as the loop's
+            wfire = w - lm
+        elif w < limit:
+            rest = charge_sum(left, lm, dl) if moving else left * lm
+            if w > rest:  # no firing in the rest of the run
+                w = w - rest
                 break
             if moving:
-                lm = l0 + p * dl
-                inv_lam = 1.0 / lm if lm > 0.0 else np.inf
-        wait[lane] = w
-        need[lane] = nd
-        cyc[lane] = np.float64(c)
+                k = crossing_linear(w, lm, dl, inv_lam, left)
+                wfire = w - (charge_sum(k, lm, dl) if moving else k * lm)
+            else:
+                k = crossing(w, lm, inv_lam, left)
+                wfire = w - k * lm
+        else:  # the loop's own subtractions
+            k = 0.0
+            while k < left and w > 0.0:
+                w = w - (l0 + (p + k) * dl)
+                k += 1.0
+            if w > 0.0:
+                break
+            wfire = w
+        words[np.int64(p + k) - 1] |= bit
+        g, d, wmin, ok = lane_finish(nd, e, eps, x, u, tail, reset, drop_free)
+        eps, x, u, tail = lane_bits(c + _U1, kw, kj, jittered, jitter)  # the next cycle's
+        nw, valid = apply_cached(wfire, g, wmin if ok else np.inf, e, reset)
+        if valid:
+            w = nw
+            nd = d
+            c += _U1
+        else:
+            wait[lane] = wfire
+            need[lane] = nd
+            cyc[lane] = np.float64(c)
+            _fire_lane(lane, electrons, ev, reset, jitter, keys, pix0, wu)
+            w = wait[lane]
+            nd = need[lane]
+            c1 = np.uint64(cyc[lane])
+            if c1 != c + _U1:  # (a float64 cycle count beyond 2⁵³)
+                eps, x, u, tail = lane_bits(c1, kw, kj, jittered, jitter)
+            c = c1
+        p += k
+        if p >= fcount:
+            break
+        if moving:
+            lm = l0 + p * dl
+            inv_lam = 1.0 / lm if lm > 0.0 else np.inf
+    wait[lane] = w
+    need[lane] = nd
+    cyc[lane] = np.float64(c)
+
+
+#: A packed walk's status of a row after a round: no firing in it, a firing
+#: whose cached draw held, a firing that :func:`fire_cycle` finishes, or a row
+#: left to the lane-by-lane walk (a wait of :data:`EXACT_WAIT` or more).
+_QUIET, _FIRED, _REDRAW, _BY_LANE = 0, 1, 2, 3
+#: Rows a packed walk's round takes in whole groups of (a multiple of the
+#: vector width), and the finished rows it gathers before it compacts them.
+_WALK_GROUP = 8
+
+
+@njit(inline="always", **_opts)
+def _copy_row(wf, wu, src, dst):
+    """Copy packed-walk row ``src`` onto ``dst`` (every ``W_*`` row)."""
+    for r in range(W_WAIT, W_U + 1):
+        wf[r, dst] = wf[r, src]
+    for r in range(W_CYCLE, W_BIT + 1):
+        wu[r, dst] = wu[r, src]
+
+
+@njit(inline="always", **_opts)
+def _put_row(wf, wu, ev, i):
+    """Write packed-walk row ``i``'s wait, need and cycle back to its lane of ``ev``."""
+    lane = wu[W_LANE, i]
+    ev[WAIT, lane] = wf[W_WAIT, i]
+    ev[NEED, lane] = wf[W_NEED, i]
+    ev[CYCLE, lane] = np.float64(wu[W_CYCLE, i])
+
+
+@njit(inline="always", **_opts)
+def _pad_rows(wf, wu, n, group):
+    """Fill rows ``n`` up to the next whole ``group`` with copies of row 0
+    (valid numbers the round computes and drops)."""
+    for i in range(n, (n + group - 1) // group * group):
+        _copy_row(wf, wu, 0, i)
+
+
+@njit(inline="always", **_opts)
+def _crossing_constant(w, lam, inv_lam, left):
+    """:func:`crossing` without branches, for a vector of lanes: ``(k, found)``,
+    ``k`` the same readouts to the next firing wherever ``found`` (not where
+    it would have returned ``left + 1``)."""
+    k0 = np.ceil(w * inv_lam)
+    dec = (k0 > 1.0) & ((k0 - 1.0) * lam >= w)
+    inc = (not dec) & (k0 * lam < w)
+    k = k0 - 1.0 if dec else (k0 + 1.0 if inc else k0)
+    return k, (k0 <= left + 2.0) & (k <= left)
+
+
+@njit(inline="always", **_opts)
+def _crossing_steps(w, lam, dlam, inv_lam, left):
+    """:func:`crossing_linear` (and :func:`crossing`, ``dlam`` = 0) without
+    branches, for a vector of lanes: ``(k, found)``, ``k`` the same readouts to
+    the next firing wherever ``found``; the estimate followed by at most two
+    steps either way (its exact sums, :func:`charge_sum`, compared with ``w``
+    at each), not ``found`` where those do not reach the crossing or it lies
+    beyond ``left``."""
+    k0 = w * inv_lam
+    ke = np.ceil(k0 - (0.5 * dlam * inv_lam) * (k0 * (k0 - 1.0)))
+    ke = ke if ke >= 1.0 else 1.0
+    ke = ke if ke <= left else left
+    up = charge_sum(ke, lam, dlam) < w
+    up1 = charge_sum(ke + 1.0, lam, dlam) >= w
+    up2 = charge_sum(ke + 2.0, lam, dlam) >= w
+    k_up = ke + 1.0 if up1 else ke + 2.0
+    found_up = (up1 | up2) & (k_up <= left)
+    down1 = (ke <= 1.0) | (charge_sum(ke - 1.0, lam, dlam) < w)
+    down2 = (ke <= 2.0) | (charge_sum(ke - 2.0, lam, dlam) < w)
+    k_down = ke if down1 else ke - 1.0
+    return (k_up if up else k_down), (found_up if up else (down1 | down2))
+
+
+def _make_packed_walk(reset, jittered, drop_free, moving, group=_WALK_GROUP):
+    """:func:`_packed_walk` compiled for one reset mode, jitter switch,
+    ``drop_free`` (:func:`lane_draw`) and whether the charge may change
+    (``moving``; else every ``dlam`` is 0), in whole ``group`` rows."""
+
+    @njit(**_inner)
+    def packed_walk(ev, lam, dlam, electrons, jitter, keys, pix0, wf, wu, words, count):
+        prefer_wide_vectors()
+        wait, need, cyc = ev[WAIT], ev[NEED], ev[CYCLE]
+        rw, rn, re, rl, rdl, ri, rp = (wf[W_WAIT], wf[W_NEED], wf[W_E], wf[W_LAM], wf[W_DLAM],
+                                       wf[W_INV], wf[W_DONE])
+        reps, rx, ru = wf[W_EPS], wf[W_X], wf[W_U]
+        rc, rkw, rkj, rtail, rlane, rstat = (wu[W_CYCLE], wu[W_KW], wu[W_KJ], wu[W_TAIL],
+                                             wu[W_LANE], wu[W_STATUS])
+        rword, rbit = wu[W_WORD], wu[W_BIT]
+        fcount = np.float64(count)
+        odd = 0
+        for lane in range(BLOCK):  # (vectorises)
+            limit = EXACT_WAIT if dlam[lane] == 0.0 else LINEAR_WAIT
+            odd += 0 if (wait[lane] < limit) & (cyc[lane] < _TWO52 - fcount) else 1
+        n = 0
+        if odd == 0:  # every lane a row, in lane order
+            for lane in range(BLOCK):
+                rlane[lane] = np.uint64(lane)
+                rw[lane] = wait[lane]
+                rn[lane] = need[lane]
+                re[lane] = electrons[lane]
+                rl[lane] = lam[lane]
+                rdl[lane] = dlam[lane]
+                ri[lane] = 1.0 / lam[lane] if lam[lane] > 0.0 else np.inf
+                rp[lane] = 0.0
+                rc[lane] = uint_of_52(cyc[lane])
+                rkw[lane] = wu[LKW, lane]
+                rkj[lane] = wu[LKJ, lane]
+            n = BLOCK
+        else:  # (an enormous threshold, or 2⁵² cycles) those lanes walked one by one
+            for lane in range(BLOCK):
+                w = wait[lane]
+                l0 = lam[lane]
+                dl = dlam[lane]
+                limit = EXACT_WAIT if dl == 0.0 else LINEAR_WAIT
+                if dl == 0.0 and not l0 > 0.0 and w > 0.0:  # never fires in this run
+                    continue
+                if not ((w < limit) & (cyc[lane] < _TWO52 - fcount)):
+                    _walk_lane(lane, ev, l0, dl, electrons, reset, jitter, keys, pix0, wu, words,
+                               fcount, drop_free)
+                    continue
+                rlane[n] = np.uint64(lane)
+                rw[n] = w
+                rn[n] = need[lane]
+                re[n] = electrons[lane]
+                rl[n] = l0
+                rdl[n] = dl
+                ri[n] = 1.0 / l0 if l0 > 0.0 else np.inf
+                rp[n] = 0.0
+                rc[n] = uint_of_52(cyc[lane])
+                rkw[n] = wu[LKW, lane]
+                rkj[n] = wu[LKJ, lane]
+                n += 1
+            if n == 0:
+                return
+            _pad_rows(wf, wu, n, group)
+        for i in range((n + group - 1) // group * group):  # vectorises
+            eps, x, u, tail = lane_bits(rc[i], rkw[i], rkj[i], jittered, jitter)
+            reps[i] = eps
+            rx[i] = x
+            ru[i] = u
+            rtail[i] = np.uint64(tail)
+        active = n
+        while active > 0:
+            rows = (active + group - 1) // group * group
+            for i in range(rows):  # one firing per row, branch-free: vectorises
+                w = rw[i]
+                l0 = rl[i]
+                dl = rdl[i]
+                p = rp[i]
+                c = rc[i]
+                nd = rn[i]
+                e = re[i]
+                left = fcount - p
+                if moving:
+                    limit = EXACT_WAIT if dl == 0.0 else LINEAR_WAIT
+                    lm = l0 + p * dl  # the charge of readout p (l0 itself where dl = 0)
+                    inv = 1.0 / lm if lm > 0.0 else np.inf
+                    rest = charge_sum(left, lm, dl)
+                    k, found = _crossing_steps(w, lm, dl, inv, left)
+                else:
+                    limit = EXACT_WAIT
+                    lm = l0
+                    rest = left * lm
+                    k, found = _crossing_constant(w, lm, ri[i], left)
+                pos = w > 0.0
+                big = pos & (w >= limit)  # the lane-by-lane walk steps it
+                quiet = pos & (not big) & (w > rest)  # no firing in the rest of the run
+                k = k if pos else 1.0
+                go = (not quiet) & (left > 0.0)
+                by_lane = go & (big | (pos & (not found)))
+                fire = go & (not by_lane)
+                wfire = w - (charge_sum(k, lm, dl) if moving else k * lm)
+                g, d, wmin, ok = lane_finish(nd, e, reps[i], rx[i], ru[i], rtail[i] != 0,
+                                             reset, drop_free)
+                eps, x, u, tail = lane_bits(c + _U1, rkw[i], rkj[i], jittered, jitter)
+                nw, valid = apply_cached(wfire, g, wmin if ok else np.inf, e, reset)
+                take = fire & valid
+                p1 = p + k
+                # a firing whose next crossing lies beyond the run ends the row at once
+                # (a changing charge's runs are short: it spares them a round)
+                left1 = fcount - p1
+                rest1 = charge_sum(left1, l0 + p1 * dl, dl) if moving else left1 * l0
+                last = moving & take & (left1 > 0.0) & (nw > 0.0) & (nw < limit) & (nw > rest1)
+                rw[i] = (nw - rest1 if last else nw) if take else (
+                    wfire if fire else (w - rest if quiet else w))
+                rn[i] = d if take else nd
+                rc[i] = c + _U1 if fire else c
+                reps[i] = eps if fire else reps[i]
+                rx[i] = x if fire else rx[i]
+                ru[i] = u if fire else ru[i]
+                rtail[i] = np.uint64(tail) if fire else rtail[i]
+                rp[i] = (fcount if last else p1) if fire else (fcount if quiet else p)
+                rword[i] = uint_of_52(p1 if fire else 1.0) - _U1  # (p1 < 2⁵²)
+                rbit[i] = np.uint64(fire)
+                rstat[i] = (_FIRED if take else (_REDRAW if fire else
+                                                 (_BY_LANE if by_lane else _QUIET)))
+            done = 0
+            for i in range(active):
+                words[rword[i]] |= rbit[i] << rlane[i]
+                s = rstat[i]
+                if s == _REDRAW:  # what the cached draw cannot finish, exactly
+                    lane = rlane[i]
+                    w, d, c1 = fire_cycle(rw[i], rn[i], np.float64(rc[i] - _U1), re[i], reset,
+                                          jitter, rkw[i], rkj[i], keys[1], keys[2], pix0 + lane)
+                    rw[i] = w
+                    rn[i] = d
+                elif s == _BY_LANE:
+                    lane = rlane[i]
+                    _put_row(wf, wu, ev, i)
+                    _walk_lane(np.int64(lane), ev, rl[i], rdl[i], electrons, reset, jitter, keys,
+                               pix0, wu, words, fcount, drop_free, rp[i])
+                    rw[i] = wait[lane]
+                    rn[i] = need[lane]
+                    rc[i] = np.uint64(cyc[lane])
+                    rp[i] = fcount
+                done += 1 if rp[i] >= fcount else 0
+            if (active - done + group - 1) // group < rows // group:
+                kept = 0
+                for i in range(active):
+                    if rp[i] >= fcount:
+                        _put_row(wf, wu, ev, i)
+                    else:
+                        if kept != i:
+                            _copy_row(wf, wu, i, kept)
+                        kept += 1
+                active = kept
+                if active > 0:
+                    _pad_rows(wf, wu, active, group)
+
+    return packed_walk
+
+
+#: The walks compiled for modulo (drop-free or not), subtract and zero reset,
+#: each for a constant and a changing charge.  Always with the jitter's bits
+#: (with no jitter they give a jitter of ±0, the same threshold; its normal's
+#: tail sends 0.8 % of the draws to :func:`fire_cycle`): half the variants to
+#: compile.
+(_WALK_M, _WALK_M_MOVING, _WALK_MF, _WALK_MF_MOVING, _WALK_S, _WALK_S_MOVING, _WALK_Z,
+ _WALK_Z_MOVING) = (_make_packed_walk(reset, True, free, moving)
+                    for reset, free in ((MODULO, False), (MODULO, True), (SUBTRACT, False),
+                                        (ZERO, False))
+                    for moving in (False, True))
+
+
+@njit(inline="always", **_opts)
+def _packed_walk(ev, lam, dlam, electrons, reset, jitter, drop_free, keys, pix0, wf, wu, words,
+                 count):
+    """:func:`_direct_lanes` on vectors: the lanes are packed into contiguous
+    rows (rows ``W_*`` of the work arrays; every lane in lane order, unless
+    one needs the lane-by-lane walk from the start), and each round takes
+    every row to its next firing in one branch-free loop that LLVM vectorises
+    (:func:`_crossing_constant` or :func:`_crossing_steps`, :func:`lane_finish`
+    with the bits :func:`lane_bits` made a round ahead, :func:`apply_cached`;
+    a row whose next crossing lies beyond the run ends there); a scalar pass
+    sets the spike bits and finishes what the cached draw cannot
+    (:func:`fire_cycle`, or :func:`_walk_lane` for the rest of the run), and
+    finished rows are gathered out whenever that saves a vector step.  The
+    same operations as :func:`_walk_lane`, so the same bits.  ``drop_free``
+    (modulo): every lane's charge is within its :func:`drop_free_floor`."""
+    moving = 0
+    for lane in range(BLOCK):
+        moving += 0 if dlam[lane] == 0.0 else 1
+    args = (ev, lam, dlam, electrons, jitter, keys, pix0, wf, wu, words, count)
+    if reset == MODULO:
+        if drop_free:
+            if moving:
+                _WALK_MF_MOVING(*args)
+            else:
+                _WALK_MF(*args)
+        elif moving:
+            _WALK_M_MOVING(*args)
+        else:
+            _WALK_M(*args)
+    elif reset == SUBTRACT:
+        if moving:
+            _WALK_S_MOVING(*args)
+        else:
+            _WALK_S(*args)
+    elif moving:
+        _WALK_Z_MOVING(*args)
+    else:
+        _WALK_Z(*args)
