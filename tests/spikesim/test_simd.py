@@ -429,8 +429,9 @@ def test_readout_loops_keep_port_5_free_and_their_masks_in_registers():
         _runs(acc, inc, out, 0, 8, 8, 3, zero)
     x = np.ones(64)
     for zero in (False, True):
-        _static_event_run(zero, x.copy(), x, x, x, x, x, x, x.copy(), 0, 0.0, 0.0, 2.0**62,
-                          -(2.0**62), out, 0, 8, 8, 3)
+        # wait, lam, dlam, electrons, gnext, wmin, m0, lam_max, backlog, out bytes
+        _static_event_run(zero, x.copy(), x, 0 * x, x, x, x, 0, 2.0**62, -(2.0**62),
+                          out, 0, 8, 8, 3)
     for fn, op in ((_runs, "vpaddq"), (_static_event_run, "vsubpd")):
         asm = "".join(fn.inspect_asm().values())
         assert op in asm and "kmov" in asm  # the loops are there, on 512-bit vectors
