@@ -45,7 +45,8 @@ A run's charge is linear in the readout on a grid (:func:`linear_charge`:
 ``λ_n = lam + m·dlam``, ``m`` readouts after the segment's reference, both
 numbers multiples of 2⁻³² e⁻).  Runs of constant charge, and runs of changing
 charge from :data:`MOVING_WALK_MIN` readouts on (:func:`event_direct`), are
-walked lane by lane from firing to firing: the readout of the next crossing
+walked from firing to firing (the block's lanes packed into rows that one
+vectorised loop takes a firing further per round): the readout of the next crossing
 is found exactly (:func:`crossing`, ``⌈wait/λ⌉``; :func:`crossing_linear`
 for a changing charge; :data:`CHARGE_GRID` for why this equals the
 per-readout subtraction bit for bit), so there is no work per readout at
@@ -615,8 +616,11 @@ def _refill_lanes(reset, jittered, stale, electrons, ev, jitter, wf, wu):
 PACKED_REFILL_MIN = 8
 #: The packed rows are drawn in whole groups of this many (the padding copies
 #: the first stale lane), so that no lane falls to the vector loop's scalar
-#: remainder.
-_PACK_GROUP = 4
+#: remainder: one 512-bit vector of float64 (two 256-bit ones).  With groups
+#: of 4, an AVX-512 host's 8-lane loop left up to 4 lanes of a refill to that
+#: remainder: 13 % of a moving run's profile samples (500×500, one thread)
+#: were its scalar arithmetic.
+_PACK_GROUP = 8
 _TWO52 = 2.0**52
 
 
@@ -1011,7 +1015,8 @@ def event_direct(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wf, wu, wo
     """``count`` readouts of a run of linear charge for a block without charge
     loss (64 lanes: ``lam`` the electrons of the run's first readout, ``dlam``
     their change per readout, both on :data:`CHARGE_GRID`, every charge of the
-    run within [0, :data:`EXACT_CHARGE`]), lane by lane from firing to firing:
+    run within [0, :data:`EXACT_CHARGE`]), each lane from firing to firing
+    (the lanes together on vectors, :func:`_packed_walk`):
     its spike words into ``words[:count]`` (bit ``l`` of ``words[k]``: lane
     ``l`` fired at the run's readout ``k``), its state ``ev`` advanced; the
     same bits as the per-readout loop (:data:`CHARGE_GRID`), with no work per
@@ -1142,6 +1147,11 @@ _QUIET, _FIRED, _REDRAW, _BY_LANE = 0, 1, 2, 3
 #: Rows a packed walk's round takes in whole groups of (a multiple of the
 #: vector width), and the finished rows it gathers before it compacts them.
 _WALK_GROUP = 8
+#: Fewest rows a round of a constant charge takes: below 16 rows LLVM runs
+#: the round on scalars (its checks that the rows do not overlap cost more
+#: than they save, it judges), so the last few rows of a block, padded to 8,
+#: took 8 rows of scalar work a round instead of two vector steps.
+_WALK_ROWS_MIN = 16
 
 
 @njit(inline="always", **_opts)
@@ -1163,10 +1173,17 @@ def _put_row(wf, wu, ev, i):
 
 
 @njit(inline="always", **_opts)
+def _round_rows(n, group):
+    """Rows a packed walk's round takes for ``n`` active ones: whole
+    ``group`` rows, at least :data:`_WALK_ROWS_MIN`."""
+    return max((n + group - 1) // group * group, _WALK_ROWS_MIN)
+
+
+@njit(inline="always", **_opts)
 def _pad_rows(wf, wu, n, group):
-    """Fill rows ``n`` up to the next whole ``group`` with copies of row 0
-    (valid numbers the round computes and drops)."""
-    for i in range(n, (n + group - 1) // group * group):
+    """Fill rows ``n`` up to :func:`_round_rows` with copies of row 0 (valid
+    numbers the round computes and drops)."""
+    for i in range(n, _round_rows(n, group)):
         _copy_row(wf, wu, 0, i)
 
 
@@ -1267,7 +1284,7 @@ def _make_packed_walk(reset, jittered, drop_free, moving, group=_WALK_GROUP):
             if n == 0:
                 return
             _pad_rows(wf, wu, n, group)
-        for i in range((n + group - 1) // group * group):  # vectorises
+        for i in range(_round_rows(n, group)):  # vectorises
             eps, x, u, tail = lane_bits(rc[i], rkw[i], rkj[i], jittered, jitter)
             reps[i] = eps
             rx[i] = x
@@ -1275,7 +1292,9 @@ def _make_packed_walk(reset, jittered, drop_free, moving, group=_WALK_GROUP):
             rtail[i] = np.uint64(tail)
         active = n
         while active > 0:
-            rows = (active + group - 1) // group * group
+            rows = _round_rows(active, group)
+            done = 0
+            special = 0
             for i in range(rows):  # one firing per row, branch-free: vectorises
                 w = rw[i]
                 l0 = rl[i]
@@ -1323,14 +1342,20 @@ def _make_packed_walk(reset, jittered, drop_free, moving, group=_WALK_GROUP):
                 rx[i] = x if fire else rx[i]
                 ru[i] = u if fire else ru[i]
                 rtail[i] = np.uint64(tail) if fire else rtail[i]
-                rp[i] = (fcount if last else p1) if fire else (fcount if quiet else p)
+                p_new = (fcount if last else p1) if fire else (fcount if quiet else p)
+                rp[i] = p_new
                 rword[i] = uint_of_52(p1 if fire else 1.0) - _U1  # (p1 < 2⁵²)
                 rbit[i] = np.uint64(fire)
                 rstat[i] = (_FIRED if take else (_REDRAW if fire else
                                                  (_BY_LANE if by_lane else _QUIET)))
-            done = 0
+                # (counted here, not in the scalar pass: 12 % of a static run's time
+                # went to that pass; pad rows count for nothing)
+                row = i < active
+                done += 1 if row & (by_lane | (p_new >= fcount)) else 0
+                special += 1 if row & (by_lane | (fire & (not take))) else 0
             for i in range(active):
                 words[rword[i]] |= rbit[i] << rlane[i]
+            for i in range(active if special else 0):
                 s = rstat[i]
                 if s == _REDRAW:  # what the cached draw cannot finish, exactly
                     lane = rlane[i]
@@ -1347,8 +1372,7 @@ def _make_packed_walk(reset, jittered, drop_free, moving, group=_WALK_GROUP):
                     rn[i] = need[lane]
                     rc[i] = np.uint64(cyc[lane])
                     rp[i] = fcount
-                done += 1 if rp[i] >= fcount else 0
-            if (active - done + group - 1) // group < rows // group:
+            if done == active or _round_rows(active - done, group) < rows:
                 kept = 0
                 for i in range(active):
                     if rp[i] >= fcount:
