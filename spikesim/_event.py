@@ -1147,10 +1147,12 @@ _QUIET, _FIRED, _REDRAW, _BY_LANE = 0, 1, 2, 3
 #: Rows a packed walk's round takes in whole groups of (a multiple of the
 #: vector width), and the finished rows it gathers before it compacts them.
 _WALK_GROUP = 8
-#: Fewest rows a round of a constant charge takes: below 16 rows LLVM runs
-#: the round on scalars (its checks that the rows do not overlap cost more
-#: than they save, it judges), so the last few rows of a block, padded to 8,
-#: took 8 rows of scalar work a round instead of two vector steps.
+#: Fewest rows a round takes: below 16 rows LLVM runs the constant-charge
+#: round on scalars (its checks that the rows do not overlap cost more than
+#: they save, it judges), so the last few rows of a block, padded to 8, took
+#: 8 rows of scalar work a round instead of two vector steps.  (The
+#: changing-charge round, vectorised from 8 rows on, then takes one vector
+#: step more on a block's last rows, on runs of 128 readouts or more only.)
 _WALK_ROWS_MIN = 16
 
 
