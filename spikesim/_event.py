@@ -419,7 +419,7 @@ FRESH = 0
 
 
 @njit(inline="always", **_opts)
-def lane_draw(need, k, e, kw, kj, reset, jittered, jitter, drop_free=False):
+def lane_draw(need, k, e, kw, kj, reset, jittered, jitter):
     """The common case of :func:`fire_cycle` that does not depend on the wait,
     for one lane in cycle ``k`` (a uint64 counter; ``kw``, ``kj`` its wait and
     jitter lane keys): ``(g, d, wmin, ok)``, the first Marsaglia–Tsang
@@ -434,19 +434,12 @@ def lane_draw(need, k, e, kw, kj, reset, jittered, jitter, drop_free=False):
     subtract, clamped) or ``g`` (zero) is then :func:`fire_cycle`'s new wait
     where ``wait`` ≥ ``wmin``, bit for bit (:func:`apply_cached`).
 
-    ``drop_free`` (modulo, a compile-time constant): the caller has checked
-    that the lane's wait at a firing cannot fall below ``−``
-    :func:`drop_free_floor` ``(e)`` (every readout's charge is at most that),
-    so the drop-free limit holds for every shape a positive need can give and
-    is not read: ``wmin`` is ``−g``'s next float up, and a need ≤ 0 (whose
-    shape the floor does not cover) is left to :func:`prepare_lane`.
-
     Branch-free, so a loop of it over contiguous rows vectorises
     (:func:`_packed_refill`).  It is :func:`lane_finish` of
     :func:`lane_bits`, which the walk (:func:`_walk_lane`) calls one firing
     apart."""
     eps, x, u, tail = lane_bits(k, kw, kj, jittered, jitter)
-    return lane_finish(need, e, eps, x, u, tail, reset, drop_free)
+    return lane_finish(need, e, eps, x, u, tail, reset, False)
 
 
 @njit(inline="always", **_opts)
@@ -470,7 +463,14 @@ def lane_bits(k, kw, kj, jittered, jitter):
 
 @njit(inline="always", **_opts)
 def lane_finish(need, e, eps, x, u, tail, reset, drop_free):
-    """The rest of :func:`lane_draw` from :func:`lane_bits`: ``(g, d, wmin, ok)``."""
+    """The rest of :func:`lane_draw` from :func:`lane_bits`: ``(g, d, wmin, ok)``.
+
+    ``drop_free`` (modulo, a compile-time constant): the caller (the walk) has
+    checked that the lane's wait at a firing cannot fall below ``−``
+    :func:`drop_free_floor` ``(e)`` (every readout's charge is at most that),
+    so the drop-free limit holds for every shape a positive need can give and
+    is not read: ``wmin`` is ``−g``'s next float up, and a need ≤ 0 (whose
+    shape the floor does not cover) is left unaccepted."""
     top = np.float64(TABLE_SHAPES - 1)
     lead, d, hd = _threshold_at(need, e, eps, reset)
     g, accepted = _candidate_of(hd, x, u)
@@ -1048,12 +1048,11 @@ def event_direct(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wf, wu, wo
 
 @njit(inline="always", **_opts)
 def _direct_lanes(ev, lam, dlam, electrons, reset, jitter, keys, pix0, wf, wu, words, count):
-    """:func:`event_direct`'s walk.  A lane's wait, need and cycle stay in
-    registers between its firings; the cycle as an integer (a float64 → uint64
-    conversion per draw measured 1.3 ns).  A modulo lane whose charge stays
-    within :func:`drop_free_floor` in the whole run is walked without the
-    drop-free limit (``lane_draw``'s ``drop_free``; its wait at a firing is at
-    least minus that readout's charge, the wait before it being ≥ 0)."""
+    """:func:`event_direct`'s walk (:func:`_packed_walk`).  A modulo block
+    whose every lane's charge stays within :func:`drop_free_floor` in the whole
+    run is walked without the drop-free limit (``lane_finish``'s
+    ``drop_free``; a wait at a firing is at least minus that readout's charge,
+    the wait before it being ≥ 0)."""
     fcount = np.float64(count)
     free = 0
     for lane in range(BLOCK):
@@ -1069,22 +1068,22 @@ def _walk_lane(lane, ev, l0, dl, electrons, reset, jitter, keys, pix0, wu, words
                drop_free, p0=0.0):
     """One lane of :func:`_direct_lanes` (``drop_free`` a compile-time constant),
     from the run's readout ``p0`` on (a whole float64; the lane's state in
-    ``ev`` is the one at that readout)."""
+    ``ev`` is the one at that readout).  Its wait, need and cycle stay in
+    registers between its firings; the cycle as an integer (a float64 →
+    uint64 conversion per draw measured 1.3 ns)."""
     wait, need, cyc = ev[WAIT], ev[NEED], ev[CYCLE]
     jittered = jitter > 0.0
     e = electrons[lane]
     w = wait[lane]
     moving = dl != 0.0
     bit = _U1 << np.uint64(lane)
-    inv_lam = 1.0 / l0 if l0 > 0.0 else np.inf
     limit = LINEAR_WAIT if moving else EXACT_WAIT
     kw, kj = wu[LKW, lane], wu[LKJ, lane]
     nd = need[lane]
     c = np.uint64(cyc[lane])
     p = p0  # readouts of the run done
     lm = l0 + p * dl if moving else l0  # the charge of readout p
-    if moving:
-        inv_lam = 1.0 / lm if lm > 0.0 else np.inf
+    inv_lam = 1.0 / lm if lm > 0.0 else np.inf
     eps, x, u, tail = lane_bits(c, kw, kj, jittered, jitter)  # cycle c's bits
     while True:
         left = fcount - p
@@ -1098,7 +1097,7 @@ def _walk_lane(lane, ev, l0, dl, electrons, reset, jitter, keys, pix0, wu, words
                 break
             if moving:
                 k = crossing_linear(w, lm, dl, inv_lam, left)
-                wfire = w - (charge_sum(k, lm, dl) if moving else k * lm)
+                wfire = w - charge_sum(k, lm, dl)
             else:
                 k = crossing(w, lm, inv_lam, left)
                 wfire = w - k * lm
