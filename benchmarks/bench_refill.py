@@ -1,0 +1,83 @@
+"""Cost per lane of the event sampler's packed refill against the number of stale lanes.
+
+The refill (``spikesim._event._packed_refill``, modulo reset with comparator
+jitter, the physical defaults) draws the next cycle of every stale lane of a
+block when the moving scene's readout loop stops.  This times it
+cache-resident, one thread: a block of 1000 e⁻ per threshold with needs
+between 500 and 1500 e⁻, 1024 random stale masks of each size, 20 passes
+over them per repeat; the median and range of ``--repeats`` repeats, in ns
+per stale lane, the sizes alternating within each repeat.  Writes nothing;
+prints a Markdown table.
+
+Usage::
+
+    python benchmarks/bench_refill.py [--lanes 16,30,48,64] [--repeats 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import machine
+import numba
+import numpy as np
+
+from spikesim import _event as E
+
+
+@numba.njit(_nrt=False)
+def _passes(masks, electrons, ev, wf, wu, jitter, passes):
+    for _ in range(passes):
+        for i in range(masks.shape[0]):
+            ev[E.CYCLE, i & 63] += 1.0  # a new cycle, so new draws
+            E._PACKED_M1(masks[i], electrons, ev, jitter, wf, wu)
+
+
+def _block(rng):
+    ev = np.zeros((4, E.BLOCK))
+    ev[E.NEED] = rng.uniform(500.0, 1500.0, E.BLOCK)
+    ev[E.CYCLE] = rng.integers(0, 1000, E.BLOCK).astype(np.float64)
+    wf = np.zeros((E.EV_WORK_F, E.BLOCK))
+    wu = np.zeros((E.EV_WORK_U, E.BLOCK), np.uint64)
+    wu[E.LKW] = rng.integers(0, 2**63, E.BLOCK, dtype=np.uint64)
+    wu[E.LKJ] = rng.integers(0, 2**63, E.BLOCK, dtype=np.uint64)
+    return ev, np.full(E.BLOCK, 1000.0), wf, wu
+
+
+def _masks(rng, lanes, count=1024):
+    return np.array([sum(1 << int(k) for k in rng.choice(E.BLOCK, lanes, replace=False))
+                     for _ in range(count)], dtype=np.uint64)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--lanes", default="16,30,48,64", help="stale lanes per refill")
+    ap.add_argument("--repeats", type=int, default=7)
+    args = ap.parse_args(argv)
+    sizes = [int(s) for s in args.lanes.split(",")]
+    if not all(E.PACKED_REFILL_MIN <= s <= E.BLOCK for s in sizes):
+        ap.error(f"--lanes: each between {E.PACKED_REFILL_MIN} and {E.BLOCK} "
+                 "(fewer stale lanes are drawn one by one)")
+    numba.set_num_threads(1)
+    rng = np.random.default_rng(0)
+    ev, electrons, wf, wu = _block(rng)
+    masks = {s: _masks(rng, s) for s in sizes}
+    passes = 20
+    _passes(masks[sizes[0]], electrons, ev, wf, wu, 0.006, 1)  # compile
+    times = {s: [] for s in sizes}
+    for _ in range(args.repeats):
+        for s in sizes:
+            t0 = time.perf_counter()
+            _passes(masks[s], electrons, ev, wf, wu, 0.006, passes)
+            times[s].append((time.perf_counter() - t0) / (passes * len(masks[s]) * s) * 1e9)
+    print(f"Machine: {machine.describe()}. Command: "
+          f"`{machine.command_line(__file__, argv)}`\n")
+    print("| stale lanes | ns per lane, median | range |\n|---:|---:|---|")
+    for s in sizes:
+        v = sorted(times[s])
+        print(f"| {s} | {v[len(v) // 2]:.2f} | {v[0]:.2f}–{v[-1]:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
