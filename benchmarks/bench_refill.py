@@ -41,7 +41,6 @@ def _block(rng):
     wf = np.zeros((E.EV_WORK_F, E.BLOCK))
     wu = np.zeros((E.EV_WORK_U, E.BLOCK), np.uint64)
     wu[E.LKW] = rng.integers(0, 2**63, E.BLOCK, dtype=np.uint64)
-    wu[E.LKJ] = rng.integers(0, 2**63, E.BLOCK, dtype=np.uint64)
     return ev, np.full(E.BLOCK, 1000.0), wf, wu
 
 

@@ -187,7 +187,7 @@ class PixelModel(NamedTuple):
     key_jitter: np.uint64
     key_charge: np.uint64
     key_init: np.uint64  #: the initial accumulator's key
-    ev_keys: np.ndarray  #: (4,) uint64, the event sampler's wait, residual, refill, jitter keys
+    ev_keys: np.ndarray  #: (3,) uint64, the event sampler's wait, residual, refill keys
 
 
 class PixelState(NamedTuple):

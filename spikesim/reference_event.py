@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from spikesim import rng
-from spikesim.reference_rng import _log_positive_np, normal_np
+from spikesim.reference_rng import _f32_pair, _log_positive_np, normal_np
 
 __all__ = ["EventReference"]
 
@@ -52,9 +52,25 @@ def _sub_bits(bits: int, j: int) -> int:
     return _mix(bits ^ ((j * rng.G2) & _MASK))
 
 
-def _word(bits: int, j: int) -> int:
-    """Word ``j`` of a Gamma draw: the bits themselves for ``j`` = 0, then ``_sub_bits``."""
-    return bits if j == 0 else _sub_bits(bits, j)
+def _normal(bits: int) -> float:
+    return float(normal_np(np.array([bits], np.uint64))[0])
+
+
+def _normal_field(f: int, fresh: int) -> float:
+    """Standard normal from a 26-bit field: bin ``f >> 14`` of the shipped
+    body table, position ``((f mod 2**14) + ½)·2**-14`` in it; in the 16
+    outermost bins on each side the full normal of the 64-bit word made of
+    that bin (top 12 bits) and the top 52 bits of ``fresh``."""
+    k = f >> 14
+    if k < rng.ICDF_TAIL_BINS or k >= rng.ICDF_BINS - rng.ICDF_TAIL_BINS:
+        return _normal((k << 52) | (fresh >> 12))
+    q, d = _f32_pair(rng._ICDF_PAIRS[np.array([k])])
+    return float(q[0] + d[0] * (((f & (2**14 - 1)) + 0.5) * 2.0**-14))
+
+
+def _jitter_z(word: int) -> float:
+    """The comparator jitter's normal: the draw word's top 26 bits (tail: word 0)."""
+    return _normal_field(word >> 38, _sub_bits(word, 0))
 
 
 def _drop_negligible(left: float, h0: float) -> bool:
@@ -80,20 +96,26 @@ def _log(y: float) -> float:
 
 
 def gamma_ref(m: float, bits: int) -> float:
-    """Gamma(m, 1): ``−log Π u_j`` for m ≤ 8 (``u_j`` from ``_word(bits, j)``),
-    else Marsaglia–Tsang with attempt j from ``_word(bits, 2j)``, ``2j+1``."""
+    """Gamma(m, 1) from a draw word: ``−log Π u_j`` for m ≤ 8 (``u_j`` from
+    ``_sub_bits(bits, j + 1)``), else Marsaglia–Tsang.  Its first attempt takes
+    the normal from bits 37–12 (:func:`_normal_field`, tail bits from sub-word
+    2) and the uniform's top 12 bits from bits 11–0 (the rest from sub-word 1);
+    attempt j ≥ 1 from sub-words ``2j + 1``, ``2j + 2``."""
     if m <= 8:
         prod = 1.0
         for j in range(int(m)):
-            prod *= _uniform(_word(bits, j))
+            prod *= _uniform(_sub_bits(bits, j + 1))
         return -_log(prod)
     d = m - 1.0 / 3.0
     c = 1.0 / math.sqrt(9.0 * d)
-    j = 0
+    x = _normal_field((bits >> 12) & (2**26 - 1), _sub_bits(bits, 2))
+    u = _uniform(((bits & 4095) << 52) | (_sub_bits(bits, 1) >> 12))
+    j = 1
     while True:
-        x = float(normal_np(np.array([_word(bits, j)], np.uint64))[0])
-        u = _uniform(_sub_bits(bits, j + 1))
-        j += 2
+        if j > 1:
+            x = _normal(_sub_bits(bits, 2 * j - 1))
+            u = _uniform(_sub_bits(bits, 2 * j))
+        j += 1
         t = 1.0 + c * x
         if t <= 0.0:
             continue
@@ -160,7 +182,6 @@ class EventReference:
         self.key_wait = int(rng.stream_key(seed, rng.STREAM_WAIT))
         self.key_resid = int(rng.stream_key(seed, rng.STREAM_RESIDUAL))
         self.key_refill = int(rng.stream_key(seed, rng.STREAM_REFILL))
-        self.key_jitter = int(rng.stream_key(seed, rng.STREAM_JITTER))
         self.need = self.e * (1.0 - np.asarray(a0, np.float64).ravel())
         self.cycle = np.zeros(self.e.size, np.int64)
         self.after = np.zeros(self.e.size)
@@ -178,8 +199,8 @@ class EventReference:
         wait, need, e = float(self.wait[p]), float(self.need[p]), float(self.e[p])
         m = float(math.ceil(need)) if need > 0.0 else 0.0
         eps = 0.0
-        if self.jitter > 0.0:
-            z = float(normal_np(np.array([_bits(self.key_jitter, c, p)], np.uint64))[0])
+        if self.jitter > 0.0:  # the jitter shares the next cycle's draw word
+            z = _jitter_z(_bits(self.key_wait, c + 1, p))
             eps = min(max(self.jitter * z, -0.5), 0.5)
         self.cycle[p] = c + 1
         if self.reset == "zero":  # a fresh cycle from the end of this readout

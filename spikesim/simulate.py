@@ -343,7 +343,7 @@ def _kernel_inputs(sensor: Sensor, seed: int, noise, event: bool = True,
         key_charge=rng.stream_key(seed, rng.STREAM_CHARGE),
         key_init=rng.stream_key(seed, rng.STREAM_INIT),
         ev_keys=np.array([rng.stream_key(seed, s) for s in (
-            rng.STREAM_WAIT, rng.STREAM_RESIDUAL, rng.STREAM_REFILL, rng.STREAM_JITTER)],
+            rng.STREAM_WAIT, rng.STREAM_RESIDUAL, rng.STREAM_REFILL)],
             np.uint64),
     )
     pool = pool if pool is not None else ArrayPool(0)  # an empty pool: fresh arrays

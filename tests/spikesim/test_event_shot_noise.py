@@ -88,7 +88,7 @@ def test_long_moving_runs_walked_equal_the_readout_loop_and_the_reference(reset)
     assert 0.02 < ss.bits.unpack(walked, 70).mean() < 0.98
 
 
-def _per_readout(ev, lam, dlam, electrons, reset, jitter, keys, lkw, lkj, count):
+def _per_readout(ev, lam, dlam, electrons, reset, jitter, keys, lkw, count):
     """The definition :func:`event_direct` must equal: subtract ``lam + k·dlam``
     at readout ``k``, fire where the wait is ≤ 0 and end the cycle with
     :func:`fire_cycle`.  Returns the spike words; ``ev`` is advanced."""
@@ -101,7 +101,7 @@ def _per_readout(ev, lam, dlam, electrons, reset, jitter, keys, lkw, lkj, count)
             ev[_event.WAIT, lane], ev[_event.NEED, lane], ev[_event.CYCLE, lane] = (
                 _event.fire_cycle(ev[_event.WAIT, lane], ev[_event.NEED, lane],
                                   ev[_event.CYCLE, lane], electrons[lane], reset, jitter,
-                                  lkw[lane], lkj[lane], keys[1], keys[2], np.uint64(lane)))
+                                  lkw[lane], keys[1], keys[2], np.uint64(lane)))
         words.append(word)
     return words
 
@@ -144,14 +144,12 @@ def test_direct_runs_equal_the_per_readout_definition_bit_for_bit(reset, e, jitt
     rng = np.random.default_rng(reset * 17 + int(e) + 5 * moving)
     count = 300
     ev, lam, dlam, electrons = _direct_block(rng, e, count, moving)
-    keys = rng.integers(1, 2**63, 4, dtype=np.uint64)
+    keys = rng.integers(1, 2**63, 3, dtype=np.uint64)
     wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
     wu[_event.LKW] = [_event.lane_key(keys[0], np.uint64(p)) for p in range(64)]
-    wu[_event.LKJ] = [_event.lane_key(keys[3], np.uint64(p)) for p in range(64)]
     wf = np.zeros((_event.EV_WORK_F, 64))
     want_ev = ev.copy()
-    want = _per_readout(want_ev, lam, dlam, electrons, reset, jitter, keys, wu[_event.LKW],
-                        wu[_event.LKJ], count)
+    want = _per_readout(want_ev, lam, dlam, electrons, reset, jitter, keys, wu[_event.LKW], count)
     for split in (count, 137):
         got_ev, words = ev.copy(), np.zeros(count, np.uint64)
         _event.event_direct(got_ev, lam, dlam, electrons, reset, jitter, keys, np.uint64(0), wf,
@@ -300,15 +298,14 @@ def _squeeze(u, x2, c, t):
 
 
 def _lanes(rng, n, e, bright):
-    """``n`` lanes (needs near ``e``, cycles, electrons, wait and jitter keys)
+    """``n`` lanes (needs near ``e``, cycles, electrons, wait keys)
     and their waits at a firing, just below 0 (down to ``−bright·e``, the
     electrons of a readout)."""
     need = e * (0.5 + rng.random(n))
     cycle = rng.integers(0, 5000, n).astype(np.float64)
     electrons = e * (1.0 + 0.05 * rng.standard_normal(n))
     kw = rng.integers(0, 2**63, n, dtype=np.uint64) * np.uint64(2) + np.uint64(1)
-    kj = rng.integers(0, 2**63, n, dtype=np.uint64) * np.uint64(2)
-    return need, cycle, electrons, kw, kj, -rng.random(n) * bright * e
+    return need, cycle, electrons, kw, -rng.random(n) * bright * e
 
 
 @pytest.mark.parametrize("reset", [0, 1, 2])
@@ -323,18 +320,18 @@ def test_drawn_ahead_cycle_gives_the_scalar_cycle_where_it_applies(reset, e, bri
     modulo ones below the drop-free limit."""
     rng = np.random.default_rng(reset * 31 + int(e))
     n = 4096
-    need, cycle, electrons, kw, kj, waits = _lanes(rng, n, e, bright)
+    need, cycle, electrons, kw, waits = _lanes(rng, n, e, bright)
     fast = applied = 0
     for i in range(n):
         state = (need[i], cycle[i], electrons[i])
-        want = _event.fire_cycle(waits[i], *state, reset, jitter, kw[i], kj[i], np.uint64(5),
+        want = _event.fire_cycle(waits[i], *state, reset, jitter, kw[i], np.uint64(5),
                                  np.uint64(6), np.uint64(i))
         g, d, wmin, ok = _event.lane_draw(need[i], np.uint64(cycle[i]), electrons[i], kw[i],
-                                          kj[i], reset, jitter > 0.0, jitter)
+                                          reset, jitter > 0.0, jitter)
         if ok:
             fast += 1
         else:
-            g, d, wmin = _event.prepare_lane(*state, reset, jitter, kw[i], kj[i])
+            g, d, wmin = _event.prepare_lane(*state, reset, jitter, kw[i])
         new_wait, valid = _event.apply_cached(waits[i], g, wmin, state[2], reset)
         if valid:
             applied += 1
@@ -372,7 +369,6 @@ def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(
     wf = np.full((_event.EV_WORK_F, 64), 7.5)
     wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
     wu[_event.LKW] = rng.integers(0, 2**63, 64, dtype=np.uint64)
-    wu[_event.LKJ] = rng.integers(0, 2**63, 64, dtype=np.uint64)
     stale_lanes = rng.choice(64, n_stale, replace=False) if n_stale < 7 else (
         np.r_[np.arange(7), rng.choice(np.arange(7, 64), n_stale - 7, replace=False)])
     stale = sum(1 << int(k) for k in stale_lanes)
@@ -388,8 +384,7 @@ def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(
         cached = wf[[_event.GNEXT, _event.DNEXT, _event.WMIN], lane]
         if stale >> lane & 1:
             want = _event.prepare_lane(ev[_event.NEED, lane], ev[_event.CYCLE, lane],
-                                       electrons[lane], reset, jitter, wu[_event.LKW, lane],
-                                       wu[_event.LKJ, lane])
+                                       electrons[lane], reset, jitter, wu[_event.LKW, lane])
             assert cached.view(np.uint64).tolist() == np.array(want).view(np.uint64).tolist()
         else:
             assert cached.tolist() == [7.5, 7.5, 7.5]

@@ -7,6 +7,7 @@ if the model were right and the seed random; the seeds are fixed).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from scipy import stats
 import spikesim as ss
 from spikesim import rng
 from spikesim._poisson import poisson
+from spikesim.reference_event import _normal_field
 from spikesim.reference_rng import _f32_pair, normal_np
 from tests.support.core_helpers import counts, flat_rows
 
@@ -92,6 +94,50 @@ def test_fast_normal_against_exact_quantiles_and_exact_moments():
     e4 = 3 * stats.norm.cdf(a) - (a**3 + 3 * a) * stats.norm.pdf(a)
     m2, m4 = m2 + 2 * (t2 + e2), m4 + 2 * (t4 + e4)
     assert abs(m2 - 1) < 4e-6 and abs(m4 - 3) < 4.5e-5
+
+
+def _tail_moments():
+    """Second and fourth moments of :func:`rng.normal` beyond the body table
+    (both sides): the refined tail table, then the exact normal."""
+    tq = rng._TAIL_Q[int(rng._EXACT_SUB):]
+    t2, t4 = _bins_moments(tq[:-1], tq[1:], 2.0**-rng.TAIL_BITS)
+    a = stats.norm.ppf(rng.EXACT_BELOW)
+    e2 = stats.norm.cdf(a) - a * stats.norm.pdf(a)
+    e4 = 3 * stats.norm.cdf(a) - (a**3 + 3 * a) * stats.norm.pdf(a)
+    return 2 * (t2 + e2), 2 * (t4 + e4)
+
+
+def test_normal_field_is_the_body_on_a_grid_and_the_exact_tails():
+    """:func:`rng.normal_field` (26 bits, tails from further bits): in the body
+    within D_k·2⁻¹⁵ ≤ 6.5e-7 of :func:`rng.normal` of any word with the same top
+    26 bits; in a tail bin :func:`rng.normal` of that bin filled with the fresh
+    bits (so inside the bin's quantiles); variance and fourth moment, in closed
+    form over the 2¹⁴-point grid, within 4e-6 and 4.5e-5 of 1 and 3; and the
+    NumPy reference gives the same bits."""
+    words = _bits_with_forced_tails(99, 20_000, 1000)
+    fields = words >> np.uint64(64 - rng.FIELD_BITS)
+    fresh = rng.mix64(np.uint64(5)) + np.arange(words.size, dtype=np.uint64) * np.uint64(rng.G1)
+    got = np.array([rng.normal_field(f, x) for f, x in zip(fields, fresh, strict=True)])
+    k = (fields >> np.uint64(rng.FIELD_BITS - rng.ICDF_BITS)).astype(np.int64)
+    tail = (k < rng.ICDF_TAIL_BINS) | (k >= rng.ICDF_BINS - rng.ICDF_TAIL_BINS)
+    assert tail.sum() > 1000 and (~tail).sum() > 10_000
+    body = np.array([rng.normal(w) for w in words[~tail]])
+    assert np.max(np.abs(got[~tail] - body)) <= 6.5e-7
+    edges = stats.norm.ppf(np.r_[k[tail], k[tail] + 1] / rng.ICDF_BINS).reshape(2, -1)
+    assert np.all((got[tail] >= edges[0] - 1.4e-4) & (got[tail] <= edges[1] + 1.4e-4))
+    composed = (fields[tail] >> np.uint64(14) << np.uint64(52)) | (fresh[tail] >> np.uint64(12))
+    np.testing.assert_array_equal(got[tail], [rng.normal(w) for w in composed])
+    ref = [_normal_field(int(f), int(x)) for f, x in zip(fields[:3000], fresh[:3000], strict=True)]
+    np.testing.assert_array_equal(got[:3000], ref)
+    # closed-form moments: z = q + d·t on the grid t_j = (j + ½)·2⁻¹⁴ in each body bin
+    q, d = _f32_pair(rng._ICDF_PAIRS[rng.ICDF_TAIL_BINS:rng.ICDF_BINS - rng.ICDF_TAIL_BINS])
+    t = (np.arange(2**14) + 0.5) * 2.0**-14
+    et = [np.mean(t**p) for p in range(5)]
+    m2 = np.sum(q**2 + 2 * q * d * et[1] + d**2 * et[2]) / rng.ICDF_BINS
+    m4 = np.sum(sum(math.comb(4, p) * q ** (4 - p) * d**p * et[p] for p in range(5)))
+    m4 /= rng.ICDF_BINS
+    t2, t4 = _tail_moments()
+    assert abs(m2 + t2 - 1) < 4e-6 and abs(m4 + t4 - 3) < 4.5e-5
 
 
 def test_reference_normals_equal_kernel_normals():
