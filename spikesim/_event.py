@@ -77,6 +77,8 @@ from spikesim._simd import (
 )
 from spikesim.rng import (
     _G1,
+    _S12,
+    _S52,
     _bits_f64,
     _f64_bits,
     float_of_52,
@@ -126,8 +128,6 @@ _S_JITTER = np.uint64(38)
 _S_X = np.uint64(12)
 _FIELD = np.uint64((1 << 26) - 1)
 _U_TOP = np.uint64((1 << 12) - 1)
-_S52 = np.uint64(52)
-_S12 = np.uint64(12)
 
 
 @njit(inline="always", **_opts)
@@ -198,7 +198,8 @@ def gamma_integer(m, bits):
             prod *= uniform(pixel_bits(bits, np.uint64(j + 1)))
         return -log_positive(prod)
     d = m - _THIRD
-    c = 1.0 / np.sqrt(9.0 * d)
+    # (the table holds this very value: its square root and division off the chain)
+    c = _C_OF[np.int64(m)] if m < TABLE_SHAPES else 1.0 / np.sqrt(9.0 * d)
     x = normal_field((bits >> _S_X) & _FIELD, pixel_bits(bits, _U2))
     t = 1.0 + c * x
     if squeeze_accepts(uniform_above(bits), x * x, c, t):  # then u's low bits cannot matter
