@@ -62,12 +62,7 @@ def main(argv=None):
             t0 = time.perf_counter()
             f(keys, out, count)
             times[h].append((time.perf_counter() - t0) / (count * keys.size) * 1e9)
-    print(f"Machine: {machine.describe()}. Command: "
-          f"`{machine.command_line(__file__, argv)}`\n")
-    print("| hashes per element | ns per element, median | range |\n|---:|---:|---|")
-    for h in variants:
-        v = sorted(times[h])
-        print(f"| {h} | {v[len(v) // 2]:.3f} | {v[0]:.3f}–{v[-1]:.3f} |")
+    machine.print_medians(__file__, argv, "hashes per element", "ns per element", times, 3)
 
 
 if __name__ == "__main__":

@@ -54,6 +54,8 @@ def main(argv=None):
     ap.add_argument("--lanes", default="16,30,48,64", help="stale lanes per refill")
     ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args(argv)
+    if args.repeats < 1:
+        ap.error("--repeats: at least 1")
     sizes = [int(s) for s in args.lanes.split(",")]
     if not all(E.PACKED_REFILL_MIN <= s <= E.BLOCK for s in sizes):
         ap.error(f"--lanes: each between {E.PACKED_REFILL_MIN} and {E.BLOCK} "
@@ -70,12 +72,7 @@ def main(argv=None):
             t0 = time.perf_counter()
             _passes(masks[s], electrons, ev, wf, wu, 0.006, passes)
             times[s].append((time.perf_counter() - t0) / (passes * len(masks[s]) * s) * 1e9)
-    print(f"Machine: {machine.describe()}. Command: "
-          f"`{machine.command_line(__file__, argv)}`\n")
-    print("| stale lanes | ns per lane, median | range |\n|---:|---:|---|")
-    for s in sizes:
-        v = sorted(times[s])
-        print(f"| {s} | {v[len(v) // 2]:.2f} | {v[0]:.2f}–{v[-1]:.2f} |")
+    machine.print_medians(__file__, argv, "stale lanes", "ns per lane", times)
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from spikejdd.runtime import describe_machine, machine_info
 
-__all__ = ["LOAD_AT_START", "load_average", "describe", "command_line"]
+__all__ = ["LOAD_AT_START", "load_average", "describe", "command_line", "print_medians"]
 
 
 def load_average() -> float | None:
@@ -48,3 +48,15 @@ def command_line(script: str, argv: list[str] | None = None) -> str:
     file records, so that running it again repeats the run."""
     args = sys.argv[1:] if argv is None else [str(a) for a in argv]
     return shlex.join(["python", f"benchmarks/{Path(script).name}", *args])
+
+
+def print_medians(script: str, argv: list[str] | None, key: str, unit: str,
+                  times: dict, digits: int = 2) -> None:
+    """Print the machine and command lines, then a Markdown table with one row
+    per entry of ``times`` (key → repeated timings in ``unit``): the key
+    (column ``key``), the median and the range of its timings."""
+    print(f"Machine: {describe()}. Command: `{command_line(script, argv)}`\n")
+    print(f"| {key} | {unit}, median | range |\n|---:|---:|---|")
+    for name, values in times.items():
+        v = sorted(values)
+        print(f"| {name} | {v[len(v) // 2]:.{digits}f} | {v[0]:.{digits}f}–{v[-1]:.{digits}f} |")

@@ -81,6 +81,7 @@ from spikesim.rng import (
     _S52,
     _bits_f64,
     _f64_bits,
+    counter_input,
     float_of_52,
     log_positive,
     mix64,
@@ -457,10 +458,10 @@ EV_WORK_F = 19
 #: lanes' keys, whether each draw holds, and each row's lane).
 LKW, OK, MASKS, P_KW, P_OK, P_LANE = range(6)
 #: A packed walk's rows: each row's cycle ``c``, the input of its draw word's
-#: hash ``kw + (c + 1)·G1`` (``readout_key`` before the mix: the next cycle's
-#: is one addition away), its normals' tail flag, its lane, its status in
-#: the round, and the spike word and bit of its firing in the round (bit 0
-#: where it did not fire).
+#: hash ``counter_input(kw, c + 1)`` (``readout_key`` before the mix: the
+#: next cycle's is one addition of ``G1`` away), its normals' tail flag, its
+#: lane, its status in the round, and the spike word and bit of its firing in
+#: the round (bit 0 where it did not fire).
 W_CYCLE, W_SEQ, W_TAIL, W_LANE, W_STATUS, W_WORD, W_BIT = range(6, 13)
 EV_WORK_U = 13
 #: Word of row :data:`MASKS`: the lanes whose cache was made for their current
@@ -1310,7 +1311,7 @@ def _make_packed_walk(reset, jittered, drop_free, moving, group=_WALK_GROUP):
                 ri[lane] = 1.0 / lam[lane] if lam[lane] > 0.0 else np.inf
                 rp[lane] = 0.0
                 rc[lane] = uint_of_52(cyc[lane])
-                rseq[lane] = wu[LKW, lane] + (rc[lane] + _U1) * _G1
+                rseq[lane] = counter_input(wu[LKW, lane], rc[lane] + _U1)
             n = BLOCK
         else:  # (an enormous threshold, or 2⁵² cycles) those lanes walked one by one
             for lane in range(BLOCK):
@@ -1333,7 +1334,7 @@ def _make_packed_walk(reset, jittered, drop_free, moving, group=_WALK_GROUP):
                 ri[n] = 1.0 / l0 if l0 > 0.0 else np.inf
                 rp[n] = 0.0
                 rc[n] = uint_of_52(cyc[lane])
-                rseq[n] = wu[LKW, lane] + (rc[n] + _U1) * _G1
+                rseq[n] = counter_input(wu[LKW, lane], rc[n] + _U1)
                 n += 1
             if n == 0:
                 return

@@ -112,19 +112,17 @@ def gamma_ref(m: float, bits: int) -> float:
     u = _uniform(((bits & 4095) << 52) | (_sub_bits(bits, 1) >> 12))
     j = 1
     while True:
-        if j > 1:
-            x = _normal(_sub_bits(bits, 2 * j - 1))
-            u = _uniform(_sub_bits(bits, 2 * j))
-        j += 1
         t = 1.0 + c * x
-        if t <= 0.0:
-            continue
-        v = t * t * t
-        x2 = x * x
-        if t >= 0.5 and u < 1.0 - (4.0 / 3.0) * (c * c) * (x2 * x2):
-            return d * v  # ln u ≤ u − 1 < −(4/3)c²x⁴ ≤ the log test's right side
-        if _log(u) < 0.5 * x2 + d * (1.0 - v + _log(v)):
-            return d * v
+        if t > 0.0:
+            v = t * t * t
+            x2 = x * x
+            if t >= 0.5 and u < 1.0 - (4.0 / 3.0) * (c * c) * (x2 * x2):
+                return d * v  # ln u ≤ u − 1 < −(4/3)c²x⁴ ≤ the log test's right side
+            if _log(u) < 0.5 * x2 + d * (1.0 - v + _log(v)):
+                return d * v
+        x = _normal(_sub_bits(bits, 2 * j + 1))
+        u = _uniform(_sub_bits(bits, 2 * j + 2))
+        j += 1
 
 
 def poisson_ref(lam: float, bits: int) -> float:

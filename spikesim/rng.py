@@ -178,7 +178,14 @@ def _mix64_int(z: int) -> int:
 @njit(cache=True, inline="always", error_model="numpy")
 def readout_key(key, n):
     """Per-readout key: ``mix64(key + n·G1)`` for readout index ``n >= 0``."""
-    return mix64(np.uint64(key) + np.uint64(n) * _G1)
+    return mix64(counter_input(key, n))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def counter_input(key, n):
+    """What :func:`readout_key` mixes, ``key + n·G1`` (mod 2⁶⁴): a Weyl
+    sequence in ``n``, so the input for ``n + 1`` is this plus ``G1``."""
+    return np.uint64(key) + np.uint64(n) * _G1
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -346,16 +353,21 @@ NORMAL_ABS_MAX = 8.25
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _normal_body(bits):
-    """(deviate by the body table, True when the bits fall in a tail bin).
-
-    ``z = float64(Q_k) + float64(D_k)·t`` from the packed float32 pair."""
-    k = bits >> _S52_BIN
+def _body_deviate(k, t):
+    """``z = float64(Q_k) + float64(D_k)·t`` in body bin ``k`` from its packed
+    float32 pair, ``t`` ∈ (0, 1) the position in the bin."""
     pair = _ICDF_PAIRS[k]
     q = np.float64(_bits_f32(np.uint32(pair & _LOW32)))
     d = np.float64(_bits_f32(np.uint32(pair >> _S32)))
+    return q + d * t
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _normal_body(bits):
+    """(deviate by the body table, True when the bits fall in a tail bin)."""
+    k = bits >> _S52_BIN
     t = (float_of_52((bits >> _S12) & _POS_MASK) + 0.5) * _TWO_M40
-    return q + d * t, (k - _TAIL_LO) >= _BODY_SPAN  # unsigned wrap
+    return _body_deviate(k, t), (k - _TAIL_LO) >= _BODY_SPAN  # unsigned wrap
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -410,11 +422,8 @@ def normal_field_body(f):
     """(deviate by the body table, True when the field falls in a tail bin) for
     a 26-bit field ``f`` (:func:`normal_field`); branch-free."""
     k = f >> _FIELD_POS
-    pair = _ICDF_PAIRS[k]
-    q = np.float64(_bits_f32(np.uint32(pair & _LOW32)))
-    d = np.float64(_bits_f32(np.uint32(pair >> _S32)))
     t = (float_of_52(f & _FIELD_POS_MASK) + 0.5) * _TWO_M_FIELD_POS
-    return q + d * t, (k - _TAIL_LO) >= _BODY_SPAN  # unsigned wrap
+    return _body_deviate(k, t), (k - _TAIL_LO) >= _BODY_SPAN  # unsigned wrap
 
 
 @njit(cache=True, inline="always", error_model="numpy")
