@@ -443,27 +443,28 @@ def fire_cycle(wait, need, cycle, e, reset, jitter, lk_wait, key_resid, key_refi
 #: block's cache by lane (:data:`GNEXT`, :data:`DNEXT`, :data:`WMIN`: wait
 #: increment, next need and the lowest wait it applies at; a lane is *ready*,
 #: its cache holding its current cycle's draw, where its ``WMIN`` is below +∞),
-#: then a packed refill's rows (:func:`_packed_refill`: the stale lanes' need,
-#: cycle and electrons, and their draws).
-GNEXT, DNEXT, WMIN, P_NEED, P_CYCLE, P_E, P_G, P_D, P_W = range(9)
+#: then a packed refill's rows (:func:`_packed_refill`: the stale lanes' need
+#: and electrons, then their draws).
+GNEXT, DNEXT, WMIN, P_NEED, P_E, P_G, P_D, P_W = range(8)
 #: A packed walk's rows (:func:`_packed_walk`): each row's wait, need,
 #: electrons, charge at the run's first readout, its change per readout and
 #: the reciprocal of a constant one, readouts done, and the
 #: bits of its current cycle (jitter, normal, uniform).
-W_WAIT, W_NEED, W_E, W_LAM, W_DLAM, W_INV, W_DONE, W_EPS, W_X, W_U = range(9, 19)
-EV_WORK_F = 19
+W_WAIT, W_NEED, W_E, W_LAM, W_DLAM, W_INV, W_DONE, W_EPS, W_X, W_U = range(8, 18)
+EV_WORK_F = 18
 #: Rows of its uint64 work array (``EV_WORK_U``, 64): the block's wait lane
 #: keys, :func:`first_waits`' scratch, the cache's mask (row
-#: :data:`MASKS`, word :data:`FRESH`), then a packed refill's rows (the stale
-#: lanes' keys, whether each draw holds, and each row's lane).
-LKW, OK, MASKS, P_KW, P_OK, P_LANE = range(6)
+#: :data:`MASKS`, word :data:`FRESH`), then a packed refill's rows (the input
+#: of each stale lane's draw-word hash, then the word and whether its draw
+#: holds).
+LKW, OK, MASKS, P_SEQ, P_OK = range(5)
 #: A packed walk's rows: each row's cycle ``c``, the input of its draw word's
 #: hash ``counter_input(kw, c + 1)`` (``readout_key`` before the mix: the
 #: next cycle's is one addition of ``G1`` away), its normals' tail flag, its
 #: lane, its status in the round, and the spike word and bit of its firing in
 #: the round (bit 0 where it did not fire).
-W_CYCLE, W_SEQ, W_TAIL, W_LANE, W_STATUS, W_WORD, W_BIT = range(6, 13)
-EV_WORK_U = 13
+W_CYCLE, W_SEQ, W_TAIL, W_LANE, W_STATUS, W_WORD, W_BIT = range(5, 12)
+EV_WORK_U = 12
 #: Word of row :data:`MASKS`: the lanes whose cache was made for their current
 #: cycle, ready or not (the others are *stale*).
 FRESH = 0
@@ -672,7 +673,8 @@ def _refill_lanes(reset, jittered, stale, electrons, ev, jitter, wf, wu):
 #: vectors.  Per lane (cache-resident, one thread, AMD EPYC host, 256-bit
 #: vectors, median [range] of 5): 17.2 [17.2–17.4] ns packed against 21.6
 #: [21.3–21.7] one by one at 30 stale lanes, 20.5 [20.5–20.7] against 22.0
-#: [22.0–22.0] at 16.
+#: [22.0–22.0] at 16.  On an Intel Xeon host (AVX-512), after the packed draw
+#: was split into three loops: 18.7 against 22.5 ns at 8 lanes.
 PACKED_REFILL_MIN = 8
 #: The packed rows are drawn in whole groups of this many (the padding copies
 #: the first stale lane), so that no lane falls to the vector loop's scalar
@@ -681,6 +683,10 @@ PACKED_REFILL_MIN = 8
 #: remainder: 13 % of a moving run's profile samples (500×500, one thread)
 #: were its scalar arithmetic.
 _PACK_GROUP = 8
+#: At least this many rows are drawn: LLVM enters the vector form of the
+#: draw's loops from 16 iterations on (it interleaves two vectors), so 8 rows
+#: ran scalar (24.8 against 18.7 ns a lane padded to 16, AVX-512 host).
+_PACK_ROWS_MIN = 16
 _TWO52 = 2.0**52
 
 
@@ -691,41 +697,55 @@ def _make_packed_refill(reset, jittered):
     def packed_refill(stale, electrons, ev, jitter, wf, wu):
         prefer_wide_vectors()
         need, cycle, kw = ev[NEED], ev[CYCLE], wu[LKW]
-        pn, pc, pe, pkw, row = wf[P_NEED], wf[P_CYCLE], wf[P_E], wu[P_KW], wu[P_LANE]
+        pn, pe, seq = wf[P_NEED], wf[P_E], wu[P_SEQ]
         n = 0
+        beyond = False  # a cycle count at or past 2⁵², where uint_of_52 is inexact
         m = stale
         while m != 0:
             lane = lowest_bit_index(m)
             m &= m - _U1
-            row[n] = lane
+            c = cycle[lane]
+            beyond |= c >= _TWO52
             pn[n] = need[lane]
-            pc[n] = cycle[lane]
             pe[n] = electrons[lane]
-            pkw[n] = kw[lane]
+            seq[n] = counter_input(kw[lane], uint_of_52(c) + _U1)
             n += 1
-        padded = (n + _PACK_GROUP - 1) // _PACK_GROUP * _PACK_GROUP
+        padded = max((n + _PACK_GROUP - 1) // _PACK_GROUP * _PACK_GROUP, _PACK_ROWS_MIN)
         for i in range(n, padded):
             pn[i] = pn[0]
-            pc[i] = pc[0]
             pe[i] = pe[0]
-            pkw[i] = pkw[0]
+            seq[i] = seq[0]
         pg, pd, pw, pok = wf[P_G], wf[P_D], wf[P_W], wu[P_OK]
-        for i in range(padded):  # contiguous rows: this loop vectorises
-            c = pc[i]
-            g, d, wmin, ok = lane_draw(pn[i], uint_of_52(c), pe[i], pkw[i], reset, jittered,
-                                       jitter)
+        # three loops over contiguous rows, each of which vectorises: the
+        # draw words, their bits, the draws (split, each loop's chain of
+        # latencies is short enough for more of its iterations to overlap)
+        for i in range(padded):
+            pok[i] = mix64(seq[i])
+        for i in range(padded):
+            eps, x, u, tail = word_bits(pok[i], jittered, jitter)
+            pg[i] = eps
+            pd[i] = x
+            pw[i] = u
+            pok[i] = np.uint64(tail)
+        for i in range(padded):
+            g, d, wmin, ok = lane_finish(pn[i], pe[i], pg[i], pd[i], pw[i], pok[i] != 0, reset,
+                                         False)
             pg[i] = g
             pd[i] = d
             pw[i] = wmin
-            pok[i] = np.uint64(ok & (c < _TWO52))  # (uint_of_52 is exact below 2⁵²)
-        for i in range(n):
-            lane = row[i]
+            pok[i] = np.uint64(ok & (not beyond))
+        i = 0
+        m = stale
+        while m != 0:  # back by lane, in the packing's order
+            lane = lowest_bit_index(m)
+            m &= m - _U1
             if pok[i] != 0:
                 wf[GNEXT, lane] = pg[i]
                 wf[DNEXT, lane] = pd[i]
                 wf[WMIN, lane] = pw[i]
             else:
                 _prepare_lane_into(lane, electrons, ev, reset, jitter, wf, wu)
+            i += 1
 
     return packed_refill
 
@@ -737,10 +757,16 @@ _PACKED_M0, _PACKED_M1, _PACKED_S0, _PACKED_S1, _PACKED_Z0, _PACKED_Z1 = (
 
 @njit(inline="always", **_opts)
 def _packed_refill(reset, jittered, stale, electrons, ev, jitter, wf, wu):
-    """:func:`_refill_lanes` on vectors: the stale lanes' state packed into
+    """:func:`_refill_lanes` on vectors: the stale lanes' need, electrons and
+    draw-word hash input (:func:`spikesim.rng.counter_input`) packed into
     contiguous rows (rows ``P_*`` of the work arrays), :func:`lane_draw` over
-    them in one loop that LLVM vectorises, the draws put back by lane, and
-    :func:`prepare_lane` for the lanes it leaves; the same bits.  A function of
+    them in three loops that LLVM vectorises (the hash, :func:`word_bits`,
+    :func:`lane_finish`), the draws put back by lane, and
+    :func:`prepare_lane` for the lanes it leaves (all of them where a cycle
+    count has reached 2⁵²); the same bits.  Against one loop that packed
+    each lane's cycle and key (and its row's lane) and drew in one pass:
+    7.5 against 9.4 ns a lane at 30 stale lanes, 6.4 against 8.2 at 64
+    (``benchmarks/bench_refill.py``'s set-up, AVX-512 host).  A function of
     its own, not inlined into the block function: inlined there, a packed
     refill measured at most a few per cent faster than drawing lane by lane
     (docs/model.md, Speed)."""

@@ -350,21 +350,24 @@ def test_drawn_ahead_cycle_gives_the_scalar_cycle_where_it_applies(reset, e, bri
 @pytest.mark.parametrize("n_stale", [0, 3, 5, 7, 8, 9, 30, 63, 64])
 @pytest.mark.parametrize("jitter", [0.006, 0.0])
 @pytest.mark.parametrize("packed", [False, True])
+@pytest.mark.parametrize("beyond", [False, True])
 def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(
-        reset, n_stale, jitter, packed):
+        reset, n_stale, jitter, packed, beyond):
     """:func:`event_refill` gives every stale lane :func:`prepare_lane`'s draw
     bit for bit, leaves the fresh lanes' cache alone, and makes every lane
     fresh: with and without jitter, small shapes, shapes beyond the tables,
-    needs ≤ 0 and cycles from 2⁵² − 1 to 2⁵³ − 2; one by one below
+    needs ≤ 0, cycles up to 2⁵² − 1 (``beyond``: up to 2⁵³ − 2, which the
+    packed refill leaves to the scalar draw); one by one below
     ``PACKED_REFILL_MIN`` stale lanes, packed from there (the counts around it
     and around whole groups), and packed at every count when called directly
     (``packed``)."""
-    rng = np.random.default_rng(reset * 7 + n_stale + int(jitter * 1000))
+    rng = np.random.default_rng(reset * 7 + n_stale + int(jitter * 1000) + 100 * beyond)
     ev = np.zeros((4, 64))
     ev[_event.NEED] = 1000.0 * (0.2 + rng.random(64))
     ev[_event.NEED, :4] = [3.5, -2.0, float(_event.TABLE_SHAPES) + 3.5, 0.0]
     ev[_event.CYCLE] = rng.integers(0, 9000, 64).astype(np.float64)
-    ev[_event.CYCLE, 4:7] = [2.0**52 - 1.0, 2.0**52, 2.0**53 - 2.0]  # (cycle + 1 exact)
+    ev[_event.CYCLE, 4:7] = ([2.0**52 - 1.0, 2.0**52, 2.0**53 - 2.0] if beyond  # (cycle + 1 exact)
+                             else [2.0**52 - 1.0, 2.0**52 - 2.0, 2.0**51])
     electrons = 1000.0 * (1.0 + 0.05 * rng.standard_normal(64))
     wf = np.full((_event.EV_WORK_F, 64), 7.5)
     wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
