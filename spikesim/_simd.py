@@ -892,45 +892,40 @@ event_cached_run64_static = _event_cached_run(False, True)
 event_cached_run64_zero_static = _event_cached_run(True, True)
 
 
-def _merge_store(context, builder, mask, new, ptr):
-    """Store ``select(mask, new, old)`` at ``ptr`` (a <64 x double> pointer;
-    ``old`` its content, ``mask`` <64 x i1>) as whole, unmasked stores.  With
-    AVX-512, LLVM would otherwise fold the select and the store back into
-    masked stores, and a load from a masked store's bytes cannot take its data
-    until the store reaches the cache (Intel): the scalar loads that list the
-    lanes after a refill or a readout run then stalled (12 % of the block
-    function's samples).  An empty inline-asm copy of each 8-lane part of
-    ``old`` (:func:`_opaque`) hides the load; elsewhere a plain select."""
-    if not _avx512(context):
-        builder.store(builder.select(mask, new, builder.load(ptr, align=8)), ptr, align=8)
-        return
-    base = builder.bitcast(ptr, ir.VectorType(ir.DoubleType(), 8).as_pointer())
-    for k in range(LANES // 8):
-        p = builder.gep(base, [ir.IntType(64)(k)])
-        old = _opaque(builder, builder.load(p, align=8), "v")
-        builder.store(builder.select(_part(builder, mask, k), _part(builder, new, k), old), p,
-                      align=8)
-
-
 @intrinsic
-def advance_cycles64(typingctx, mask, need, dnext, cycle):
-    """For the lanes of ``mask`` (lane ``k`` ↔ bit ``k``): ``need = dnext``,
-    ``cycle += 1`` (64 contiguous float64 lanes each, updated in place): the
-    next cycle of the firings :func:`event_cached_run64` took from the cache,
-    as masked vector moves."""
-    if not (mask == types.uint64 and all(_is_f64_array(a) for a in (need, dnext, cycle))):
+def expand_lanes64(typingctx, mask, src, dst):
+    """``dst[k] = src[j]`` for each lane ``k`` of ``mask`` (lane ``k`` ↔ bit
+    ``k``), ``j`` its rank among them (the inverse of packing the lanes of
+    ``mask`` into contiguous rows in lane order; ``src`` holds at least that
+    many values, and no more are read); the other lanes keep their value.
+    ``dst``: 64 contiguous float64 lanes, written as eight whole 8-lane
+    stores (AVX-512: an expanding load, ``vexpandpd``, merged into the old
+    part).  Storing lane by lane instead, a refill's hundreds of scalar
+    stores reached the cache only after the readout loop that followed had
+    come to its own stores, which then waited for room."""
+    if not (mask == types.uint64 and _is_f64_array(src) and _is_f64_array(dst)):
         return None
 
     def codegen(context, builder, sig, args):
-        fvec = ir.VectorType(ir.DoubleType(), LANES)
-        zero = ir.IntType(64)(0)
-        m = builder.bitcast(args[0], ir.VectorType(ir.IntType(1), LANES))
-        need_p, dnext_p, cycle_p = (_lanes_ptr(context, builder, sig, args, k, zero, fvec)
-                                    for k in (1, 2, 3))
-        _merge_store(context, builder, m, builder.load(dnext_p, align=8), need_p)
-        c = builder.load(cycle_p, align=8)
-        one = ir.Constant(fvec, [1.0] * LANES)
-        _merge_store(context, builder, m, builder.fadd(c, one), cycle_p)
+        i64 = ir.IntType(64)
+        part = ir.VectorType(ir.DoubleType(), 8)
+        fn = builder.module.declare_intrinsic(
+            "llvm.masked.expandload.v8f64", [],
+            ir.FunctionType(part, [ir.DoubleType().as_pointer(), ir.VectorType(ir.IntType(1), 8),
+                                   part]))
+        src_data = context.make_array(sig.args[1])(context, builder, args[1]).data
+        dst_base = builder.bitcast(context.make_array(sig.args[2])(context, builder, args[2]).data,
+                                   part.as_pointer())
+        ctpop = builder.module.declare_intrinsic("llvm.ctpop", [i64])
+        offset = i64(0)
+        for k in range(LANES // 8):
+            byte = builder.trunc(builder.lshr(args[0], i64(8 * k)), ir.IntType(8))
+            p = builder.gep(dst_base, [i64(k)])
+            new = builder.call(fn, [builder.gep(src_data, [offset]),
+                                    builder.bitcast(byte, ir.VectorType(ir.IntType(1), 8)),
+                                    builder.load(p, align=8)])
+            builder.store(new, p, align=8)
+            offset = builder.add(offset, builder.call(ctpop, [builder.zext(byte, i64)]))
         return context.get_dummy_value()
 
-    return types.void(mask, need, dnext, cycle), codegen
+    return types.void(mask, src, dst), codegen

@@ -10,13 +10,13 @@ from numba import njit
 
 from spikesim._event import on_grid
 from spikesim._simd import (
-    advance_cycles64,
     carry_run64,
     carry_run64_zero,
     event_cached_run64,
     event_cached_run64_static,
     event_cached_run64_zero,
     event_cached_run64_zero_static,
+    expand_lanes64,
     high_bits_at_least64,
     linear_carry_run64,
     linear_carry_run64_zero,
@@ -93,8 +93,8 @@ def _event_run(variant, wait, lam, dlam, e, gn, lo, m0, cap, floor, out, first, 
 
 
 @njit
-def _advance(mask, need, dnext, cycle):
-    advance_cycles64(mask, need, dnext, cycle)
+def _expand(mask, src, dst):
+    expand_lanes64(mask, src, dst)
 
 
 def _mask(bits):
@@ -365,24 +365,23 @@ def test_event_cached_run64_equals_the_scalar_steps_and_stops_where_a_lane_canno
                 assert want_bad & ~_mask(took) == 0
 
 
-def test_advance_cycles64_moves_need_and_counts_cycles_on_the_masked_lanes_only():
-    rng = np.random.default_rng(2)
-    need, dnext, cycle = rng.random(64), rng.random(64), rng.integers(0, 9, 64).astype(float)
-    mask = int(rng.integers(0, 2**63)) * 2 + 1
-    sel = np.array([(mask >> k) & 1 for k in range(64)], bool)
-    want_need, want_cycle = np.where(sel, dnext, need), cycle + sel
-    _advance(np.uint64(mask), need, dnext, cycle)
-    np.testing.assert_array_equal(need, want_need)
-    np.testing.assert_array_equal(cycle, want_cycle)
-
-
-def test_merged_lanes_are_stored_whole_not_as_masked_stores():
-    """:func:`advance_cycles64` stores whole vectors:
-    a load from the bytes of a masked store waits until that store reaches the
-    cache, and the scalar loads that follow them stalled (the AVX-512 form
-    ``vmovupd %zmm, (mem){%k}`` must not appear)."""
-    asm = "".join(_advance.inspect_asm().values())
-    assert "vmovupd" in asm or "vmovapd" in asm or "movupd" in asm  # the stores are there
+def test_expand_lanes64_puts_packed_values_back_by_lane_and_keeps_the_rest():
+    """Lane ``k`` of the mask takes ``src[j]``, ``j`` its rank among the mask's
+    lanes; the others keep their value; no value of ``src`` beyond the mask's
+    count is read (``src`` exactly that long), and the stores are whole
+    vectors (no AVX-512 masked store)."""
+    rng = np.random.default_rng(3)
+    masks = [0, 2**64 - 1, 1, 2**63, 0xFF00, 0x00FF00FF00FF00FF] + [
+        int(rng.integers(0, 2**63)) * 2 + int(rng.integers(0, 2)) for _ in range(40)]
+    for m in masks:
+        lanes = [k for k in range(64) if m >> k & 1]
+        src = rng.random(len(lanes))
+        dst = rng.random(64)
+        want = dst.copy()
+        want[lanes] = src
+        _expand(np.uint64(m), src, dst)
+        np.testing.assert_array_equal(dst, want)
+    asm = "".join(_expand.inspect_asm().values())
     assert not re.search(r"vmov[au]p[sd]\s+%zmm\d+,\s*[^,\s]*\(%\w+[^)]*\)\{%k", asm)
 
 
