@@ -617,12 +617,10 @@ def event_cache_clear(wf, wu, lanes):
 def event_sync(used, ev, wf, wu):
     """Finish the firings :func:`spikesim._simd.event_cached_run64` took from
     the cache (lanes ``used``; it set their waits and spent their ``WMIN``):
-    next need, next cycle, stale.  Lane by lane: the refill and
-    :func:`event_settle` wrote these rows lane by lane just before, and a
-    vector load of a row (:func:`spikesim._simd.advance_cycles64`) waited
-    for those stores to reach the cache, behind the refill's hundreds (10 %
-    of a moving run's profile samples on that one load, 500×500, one
-    thread, AVX-512 host)."""
+    next need, next cycle, stale, lane by lane (a few lanes a call).  With
+    the block's rows 32 bytes off a cache line, whole-row vector merges here
+    held 10 % of a moving run's profile samples on one load, waiting for the
+    refill's stores; with aligned rows the two forms measured the same."""
     need, cycle, dnext = ev[NEED], ev[CYCLE], wf[DNEXT]
     m = used
     while m != 0:

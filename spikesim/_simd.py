@@ -900,9 +900,7 @@ def expand_lanes64(typingctx, mask, src, dst):
     many values, and no more are read); the other lanes keep their value.
     ``dst``: 64 contiguous float64 lanes, written as eight whole 8-lane
     stores (AVX-512: an expanding load, ``vexpandpd``, merged into the old
-    part).  Storing lane by lane instead, a refill's hundreds of scalar
-    stores reached the cache only after the readout loop that followed had
-    come to its own stores, which then waited for room."""
+    part), where a refill would otherwise store lane by lane."""
     if not (mask == types.uint64 and _is_f64_array(src) and _is_f64_array(dst)):
         return None
 
