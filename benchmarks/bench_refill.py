@@ -3,7 +3,8 @@
 The refill (``spikesim._event._packed_refill``, modulo reset with comparator
 jitter, the physical defaults) draws the next cycle of every stale lane of a
 block when the moving scene's readout loop stops.  This times it
-cache-resident, one thread: a block of 1000 e⁻ per threshold with needs
+cache-resident, one thread, on rows aligned as the kernel's: a block of
+1000 e⁻ per threshold with needs
 between 500 and 1500 e⁻, 1024 random stale masks of each size, 20 passes
 over them per repeat; the median and range of ``--repeats`` repeats, in ns
 per stale lane, the sizes alternating within each repeat.  Writes nothing;
@@ -34,14 +35,24 @@ def _passes(masks, electrons, ev, wf, wu, jitter, passes):
             E._PACKED_M1(masks[i], electrons, ev, jitter, wf, wu)
 
 
+def _aligned_zeros(rows, dtype=np.float64):
+    """Zeroed ``(rows, 64)`` lanes starting at a multiple of 64 bytes, as the
+    kernel's work rows (``spikesim._kernels._aligned_rows``)."""
+    buf = np.zeros(rows * E.BLOCK + 8, dtype)
+    skip = (-buf.ctypes.data % 64) // 8
+    return buf[skip:skip + rows * E.BLOCK].reshape(rows, E.BLOCK)
+
+
 def _block(rng):
-    ev = np.zeros((4, E.BLOCK))
+    ev = _aligned_zeros(4)
     ev[E.NEED] = rng.uniform(500.0, 1500.0, E.BLOCK)
     ev[E.CYCLE] = rng.integers(0, 1000, E.BLOCK).astype(np.float64)
-    wf = np.zeros((E.EV_WORK_F, E.BLOCK))
-    wu = np.zeros((E.EV_WORK_U, E.BLOCK), np.uint64)
+    wf = _aligned_zeros(E.EV_WORK_F)
+    wu = _aligned_zeros(E.EV_WORK_U, np.uint64)
     wu[E.LKW] = rng.integers(0, 2**63, E.BLOCK, dtype=np.uint64)
-    return ev, np.full(E.BLOCK, 1000.0), wf, wu
+    electrons = _aligned_zeros(1)[0]
+    electrons[:] = 1000.0
+    return ev, electrons, wf, wu
 
 
 def _masks(rng, lanes, count=1024):

@@ -681,8 +681,9 @@ def _refill_lanes(reset, jittered, stale, electrons, ev, jitter, wf, wu):
 #: vectors.  Per lane (cache-resident, one thread, AMD EPYC host, 256-bit
 #: vectors, median [range] of 5): 17.2 [17.2–17.4] ns packed against 21.6
 #: [21.3–21.7] one by one at 30 stale lanes, 20.5 [20.5–20.7] against 22.0
-#: [22.0–22.0] at 16.  On an Intel Xeon host (AVX-512), after the packed draw
-#: was split into three loops: 18.7 against 22.5 ns at 8 lanes.
+#: [22.0–22.0] at 16.  On an Intel Xeon host (AVX-512), with the packed draw
+#: in three loops: 19.1–19.4 against 20.5–21.4 ns at 8 lanes, 24.7–26.6
+#: against 20.8–24.1 at 6 (medians of 7 in two processes).
 PACKED_REFILL_MIN = 8
 #: The packed rows are drawn in whole groups of this many (the padding copies
 #: the first stale lane), so that no lane falls to the vector loop's scalar
@@ -693,7 +694,8 @@ PACKED_REFILL_MIN = 8
 _PACK_GROUP = 8
 #: At least this many rows are drawn: LLVM enters the vector form of the
 #: draw's loops from 16 iterations on (it interleaves two vectors), so 8 rows
-#: ran scalar (24.8 against 18.7 ns a lane padded to 16, AVX-512 host).
+#: ran scalar (24.8 ns a lane against 18.7 padded to 16, a copy of the
+#: refill, AVX-512 host).
 _PACK_ROWS_MIN = 16
 _TWO52 = 2.0**52
 
@@ -771,9 +773,12 @@ def _packed_refill(reset, jittered, stale, electrons, ev, jitter, wf, wu):
     :func:`lane_finish`), the draws put back by lane, and
     :func:`prepare_lane` for the lanes it leaves (all of them where a cycle
     count has reached 2⁵²); the same bits.  Against one loop that packed
-    each lane's cycle and key (and its row's lane) and drew in one pass:
-    7.5 against 9.4 ns a lane at 30 stale lanes, 6.4 against 8.2 at 64
-    (``benchmarks/bench_refill.py``'s set-up, AVX-512 host).  A function of
+    each lane's cycle and key (and its row's lane), drew in one pass and
+    put back lane by lane, per lane: 1.25–1.28× faster at 30 stale lanes,
+    1.37–1.43× at 64, 1.05–1.10× at 16, 0.83–0.91× at 8 (medians of 7
+    alternating repeats in each of three processes,
+    ``benchmarks/bench_refill.py``'s set-up on aligned rows, AVX-512
+    host).  A function of
     its own, not inlined into the block function: inlined there, a packed
     refill measured at most a few per cent faster than drawing lane by lane
     (docs/model.md, Speed)."""

@@ -723,8 +723,9 @@ def _aligned_rows(n, dtype):
     """``n`` uninitialised rows of :data:`BLOCK` 8-byte lanes (C-contiguous),
     the first lane at a multiple of 64 bytes, so that every 8-lane part of a
     row is one cache line: numba aligns a new array to 32 bytes only, and a
-    512-bit access that straddles two lines costs two (a refill 3 % slower
-    per lane in a cache-resident microbenchmark with rows 32 bytes off)."""
+    512-bit access that straddles two lines costs two (a refill 2.5–4 %
+    slower per lane in a cache-resident microbenchmark with rows 32 bytes
+    off; a whole moving physical run 8 %, docs/model.md, Speed)."""
     buf = np.empty(n * BLOCK + 8, dtype)
     skip = (8 - (np.int64(buf.ctypes.data) >> 3) % 8) % 8
     return buf[skip:skip + n * BLOCK].reshape((n, BLOCK))
