@@ -24,9 +24,7 @@ import numba
 import numpy as np
 
 from spikesim._simd import prefer_wide_vectors
-from spikesim.rng import float_of_52, mix64, readout_key
-
-_S12 = np.uint64(12)
+from spikesim.rng import _S12, float_of_52, mix64, readout_key
 
 
 def _make(extra):
