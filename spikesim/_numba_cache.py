@@ -11,7 +11,10 @@ that everything is compiled afresh.  Those sources are the modules that import
 ``numba`` or ``llvmlite`` (a jitted function can only call jitted functions and
 intrinsics, which live in such modules) and the shipped ``.npy`` tables the
 kernels load; an edit anywhere else (a docstring in ``analysis/``) keeps the
-cache.  A user-set ``NUMBA_CACHE_DIR`` is left alone.
+cache.  Under a user-set ``NUMBA_CACHE_DIR`` (a read-only install, a cluster's
+shared cache) numba keeps the package's cache files there instead, in one
+folder per source folder (its name and a hash of its path), and the same check
+covers those folders; nothing else in that directory is touched.
 """
 
 from __future__ import annotations
@@ -61,31 +64,44 @@ def compiled_in_this_process() -> bool:
     return False
 
 
+def cache_folder(source_folder: Path) -> Path:
+    """The folder where numba keeps the cache files of the modules in
+    ``source_folder``: its ``__pycache__``, or under a user-set
+    ``NUMBA_CACHE_DIR`` the folder numba names there after it (numba's own
+    rule, ``UserProvidedCacheLocator``)."""
+    user = os.environ.get("NUMBA_CACHE_DIR")
+    if not user:
+        return source_folder / "__pycache__"
+    from numba.core.caching import UserProvidedCacheLocator
+
+    return Path(user) / UserProvidedCacheLocator.get_suitable_cache_subpath(
+        os.fspath(source_folder / "module.py"))
+
+
 def cache_is_cold(package_dir: Path | None = None) -> bool:
-    """Whether the next simulation compiles its kernels: no numba cache file beside
-    the package's modules yet (the first run after an install or an update, which
-    takes about a minute).  False under a user-set ``NUMBA_CACHE_DIR`` (not known)."""
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return False
-    folder = (package_dir or Path(__file__).parent) / "__pycache__"
+    """Whether the next simulation compiles its kernels: no numba cache file for
+    the package's top-level modules yet (the first run after an install or an
+    update, which takes about a minute)."""
+    folder = cache_folder(package_dir or Path(__file__).parent)
     return not any(folder.glob("*.nbi"))
 
 
 def sync_cache(package_dir: Path) -> bool:
-    """Remove the numba cache files under ``package_dir`` when its sources
-    changed since the last call; returns True when it removed them.  Never
-    raises for an unwritable install (the cache is then numba's concern)."""
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return False
-    stamp = package_dir / "__pycache__" / STAMP_NAME
+    """Remove the numba cache files of ``package_dir``'s modules (in each of its
+    folders' :func:`cache_folder`) when its sources changed since the last
+    call; returns True when it removed them.  Never raises for an unwritable
+    install or cache (the cache is then numba's concern)."""
+    stamp = cache_folder(package_dir) / STAMP_NAME
     try:
         digest = sources_digest(package_dir)
         if stamp.is_file() and stamp.read_text().strip() == digest:
             return False
-        for path in package_dir.rglob("__pycache__/*"):
-            if path.suffix in _CACHE_SUFFIXES:
-                path.unlink(missing_ok=True)
-        stamp.parent.mkdir(exist_ok=True)
+        folders = {package_dir} | {p.parent for p in package_dir.rglob("*.py")}
+        for folder in folders:
+            for path in cache_folder(folder).glob("*"):
+                if path.suffix in _CACHE_SUFFIXES:
+                    path.unlink(missing_ok=True)
+        stamp.parent.mkdir(parents=True, exist_ok=True)
         tmp = stamp.with_name(f"{STAMP_NAME}.{os.getpid()}.tmp")
         tmp.write_text(digest)
         tmp.replace(stamp)

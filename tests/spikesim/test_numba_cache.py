@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 
-from spikesim._numba_cache import STAMP_NAME, sync_cache
+from spikesim._numba_cache import STAMP_NAME, cache_folder, sync_cache
 
 
 def _package(tmp_path):
@@ -54,12 +54,48 @@ def test_cache_survives_unchanged_sources_and_is_dropped_after_any_edit(tmp_path
     assert not [p for p in (pkg / "__pycache__").iterdir() if p.name.endswith(".tmp")]
 
 
-def test_a_user_cache_dir_is_left_alone(tmp_path, monkeypatch):
+def test_a_user_cache_dir_is_kept_in_step_and_nothing_else_there_is_touched(tmp_path,
+                                                                           monkeypatch):
+    """Under a user-set ``NUMBA_CACHE_DIR`` numba keeps each source folder's cache in
+    a folder of its own there (its name and a hash of its path): those are dropped
+    after an edit like the package's own ``__pycache__`` would be; other projects'
+    folders and files in that directory, and the package's ``__pycache__``, stay."""
     pkg = _package(tmp_path)
-    files = _cache_files(pkg)
-    monkeypatch.setenv("NUMBA_CACHE_DIR", os.fspath(tmp_path / "elsewhere"))
-    assert not sync_cache(pkg)
+    beside = _cache_files(pkg)
+    user = tmp_path / "elsewhere"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", os.fspath(user))
+    from numba.core.caching import UserProvidedCacheLocator
+
+    def there(module):  # where numba itself puts a module's cache under the user dir
+        return user / UserProvidedCacheLocator.get_suitable_cache_subpath(os.fspath(module))
+
+    assert cache_folder(pkg) == there(pkg / "kernels.py")
+    assert cache_folder(pkg / "sub") == there(pkg / "sub" / "rng.py")
+    assert there(pkg / "kernels.py") != there(pkg / "sub" / "rng.py")
+    other = user / "otherproject_0123abcd" / "mod.f-1.py311.nbi"
+    other.parent.mkdir(parents=True)
+    other.write_bytes(b"theirs")
+
+    def user_files():
+        files = [there(pkg / "kernels.py") / "kernels.f-1.py311.nbi",
+                 there(pkg / "kernels.py") / "kernels.f-1.py311.1.nbc",
+                 there(pkg / "sub" / "rng.py") / "rng.g-3.py311.nbi"]
+        for f in files:
+            f.parent.mkdir(parents=True, exist_ok=True)
+            f.write_bytes(b"cached")
+        return files
+
+    files = user_files()
+    assert sync_cache(pkg)  # first run there: no stamp yet, so start clean
+    assert not any(f.exists() for f in files)
+    assert (cache_folder(pkg) / STAMP_NAME).is_file()
+    files = user_files()
+    assert not sync_cache(pkg)  # nothing changed: kept
     assert all(f.exists() for f in files)
+    (pkg / "sub" / "rng.py").write_text("import numba\ny = 3\n")
+    assert sync_cache(pkg)
+    assert not any(f.exists() for f in files)
+    assert other.read_bytes() == b"theirs" and all(f.exists() for f in beside)
 
 
 def test_a_compiled_kernel_is_told_from_a_cached_one(tmp_path, monkeypatch):
