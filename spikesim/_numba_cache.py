@@ -96,8 +96,7 @@ def sync_cache(package_dir: Path) -> bool:
         digest = sources_digest(package_dir)
         if stamp.is_file() and stamp.read_text().strip() == digest:
             return False
-        folders = {package_dir} | {p.parent for p in package_dir.rglob("*.py")}
-        for folder in folders:
+        for folder in {p.parent for p in package_dir.rglob("*.py")}:
             for path in cache_folder(folder).glob("*"):
                 if path.suffix in _CACHE_SUFFIXES:
                     path.unlink(missing_ok=True)
