@@ -70,6 +70,7 @@ from numba import njit
 from spikesim._poisson import LAMBDA_MAX, poisson
 from spikesim._simd import (
     expand_lanes64,
+    expands_natively,
     high_bits_at_least64,
     lowest_bit_index,
     popcount64,
@@ -744,9 +745,12 @@ def _make_packed_refill(reset, jittered):
             pd[i] = d
             pw[i] = wmin
             pok[i] = np.uint64(ok & (not beyond))
-        expand_lanes64(stale, pg, wf[GNEXT])  # back by lane, as whole vectors
-        expand_lanes64(stale, pd, wf[DNEXT])
-        expand_lanes64(stale, pw, wf[WMIN])
+        gnext, dnext, wmin = wf[GNEXT], wf[DNEXT], wf[WMIN]
+        native = expands_natively()
+        if native:
+            expand_lanes64(stale, pg, gnext)  # back by lane, as whole vectors
+            expand_lanes64(stale, pd, dnext)
+            expand_lanes64(stale, pw, wmin)
         i = 0
         m = stale
         while m != 0:  # (in the packing's order)
@@ -754,6 +758,10 @@ def _make_packed_refill(reset, jittered):
             m &= m - _U1
             if pok[i] == 0:
                 _prepare_lane_into(lane, electrons, ev, reset, jitter, wf, wu)
+            elif not native:  # back lane by lane
+                gnext[lane] = pg[i]
+                dnext[lane] = pd[i]
+                wmin[lane] = pw[i]
             i += 1
 
     return packed_refill
