@@ -779,7 +779,8 @@ def _packed_refill(reset, jittered, stale, electrons, ev, jitter, wf, wu):
     contiguous rows (rows ``P_*`` of the work arrays), :func:`lane_draw` over
     them in three loops that LLVM vectorises (the hash, :func:`word_bits`,
     :func:`lane_finish`), the draws put back by lane
-    (:func:`spikesim._simd.expand_lanes64`), and
+    (:func:`spikesim._simd.expand_lanes64` with AVX-512; elsewhere lane by
+    lane in the last pass, :func:`spikesim._simd.expands_natively`), and
     :func:`prepare_lane` for the lanes it leaves (all of them where a cycle
     count has reached 2⁵²); the same bits.  Against one loop that packed
     each lane's cycle and key (and its row's lane), drew in one pass and

@@ -913,7 +913,8 @@ def expand_lanes64(typingctx, mask, src, dst):
     many values, and no more are read); the other lanes keep their value.
     ``dst``: 64 contiguous float64 lanes, written as eight whole 8-lane
     stores (AVX-512: an expanding load, ``vexpandpd``, merged into the old
-    part), where a refill would otherwise store lane by lane."""
+    part), where a refill would otherwise store lane by lane.  Without
+    AVX-512 LLVM makes it a branch per lane (:func:`expands_natively`)."""
     if not (mask == types.uint64 and _is_f64_array(src) and _is_f64_array(dst)):
         return None
 
