@@ -39,18 +39,30 @@ HASWELL = {
 }
 
 
-def _digest(env):
+def _run(code, env):
+    """The standard output of ``code`` run in a fresh interpreter from the
+    repository's root with environment ``env`` (it must succeed)."""
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    done = subprocess.run([sys.executable, "-c", DIGEST], capture_output=True, text=True,
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           cwd=root, env=env, timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
-    return done.stdout.strip()
+    return done.stdout
+
+
+def _for_haswell(tmp_path):
+    """This process's environment with numba compiling for a Haswell CPU into a
+    fresh cache."""
+    return dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **HASWELL)
+
+
+def _digest(env):
+    return _run(DIGEST, env).strip()
 
 
 @pytest.mark.slow
 def test_kernels_build_without_avx512_and_give_the_same_bits(tmp_path):
     here = _digest(dict(os.environ))
-    there = _digest(dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **HASWELL))
+    there = _digest(_for_haswell(tmp_path))
     assert len(here) == 64 and there == here
 
 
@@ -89,12 +101,8 @@ def _haswell_loops(tmp_path, calls):
     """The instructions of each readout loop (``@stack``: with a stack operand)
     of ``calls`` (the body of ``runs(acc, inc, x, out, count)``) built for a
     Haswell CPU in a fresh cache."""
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    done = subprocess.run([sys.executable, "-c", LOOP_ASM.replace("CALLS", calls)],
-                          capture_output=True, text=True, cwd=root, timeout=900,
-                          env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **HASWELL))
-    assert done.returncode == 0, done.stderr[-3000:]
-    return [loop.split() for loop in done.stdout.split("\n")[:-1]]
+    out = _run(LOOP_ASM.replace("CALLS", calls), _for_haswell(tmp_path))
+    return [loop.split() for loop in out.split("\n")[:-1]]
 
 
 @pytest.mark.slow
@@ -157,11 +165,6 @@ def test_avx2_refill_puts_its_draws_back_without_a_branch_per_lane(tmp_path):
     expanding loads (``spikesim._simd.expand_lanes64``), which LLVM splits
     there into a conditional branch per lane and row: 542 conditional jumps
     in the refill's code with them, 194 without (on an AMD EPYC host, three
-    such put-backs took 630 ns at 28 stale lanes, the loop 53)."""
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    done = subprocess.run([sys.executable, "-c", REFILL_ASM], capture_output=True, text=True,
-                          cwd=root, timeout=900,
-                          env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), **HASWELL))
-    assert done.returncode == 0, done.stderr[-3000:]
-    native, branches = done.stdout.split()
+    such put-backs took 635 ns at 28 stale lanes, the loop 54)."""
+    native, branches = _run(REFILL_ASM, _for_haswell(tmp_path)).split()
     assert native == "False" and int(branches) < 300
