@@ -528,9 +528,6 @@ def _write_png(path, rgb8) -> None:
 def _demo(args) -> int:
     from spikejdd.demo import run_demo
     from spikesim.commands.demo import print_sequences
-    from spikesim.workload import announce_cold_cache
-
-    announce_cold_cache("spikejdd demo")
 
     r = run_demo(args.out, size=args.size, limit=args.limit,
                  methods=_methods(args.methods) or None, device=args.device,

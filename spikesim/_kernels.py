@@ -52,8 +52,12 @@ Charges too large for the fixed point saturate (:data:`Q_WHOLE_MAX`,
 
 from __future__ import annotations
 
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -245,7 +249,7 @@ def _pieces_radiance(frames, p0, p1, piece_a, piece_b, piece_len, piece_phi, y, 
             ibuf[lane] += ln * (va + (vb - va) * phi)
 
 
-@njit(inline="always", **_opts)
+@njit(**_inner)
 def _fast_static(n0, n1, qconst, frac, out, t_off, y, blk, zero, work):
     """Constant charge < 1 θ, empty whole part: a 64-lane integer add whose
     carry bits are the spikes, the whole run in one call with the accumulator
@@ -282,7 +286,7 @@ def _put(out, t, y, blk, word):
     store_word(out, first, word, nbytes)
 
 
-@njit(inline="always", **_opts)
+@njit(**_inner)
 def _fast_linear(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y, blk, zero):
     """No per-readout noise, charge < 1 θ, empty whole part, linear radiance:
     the whole run in one vector call with the accumulator in registers
@@ -358,9 +362,9 @@ def _fast_paper(n0, n1, t_a, inv_span, ia, di, gain, offset, frac, out, t_off, y
         _put(out, n - t_off, y, blk, word)
 
 
-@njit(inline="always", **_opts)
+@njit(**_inner)
 def _general_step(n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width,
-                  model, zbuf, bbuf, pkeys, shot_work, after):
+                  model, zbuf, bbuf, pkeys, shot_work, after, paper, readout):
     """One readout of the general model for a block; returns the spike mask.
 
     ``ibuf`` holds the mean radiance of each lane on entry and is overwritten
@@ -380,7 +384,7 @@ def _general_step(n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x
     loss = model.loss
     reset = model.reset
     pix0 = np.uint64(y * width + x0)
-    if paper_sg2 > 0.0 or paper_sp2 > 0.0:
+    if paper is not None and (paper_sg2 > 0.0 or paper_sp2 > 0.0):
         normals_into(readout_key(model.key_paper, n), pkeys, zbuf, bbuf)
         if paper_sp2 > 0.0:
             for lane in range(BLOCK):
@@ -393,13 +397,14 @@ def _general_step(n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x
                 ibuf[lane] = max(ibuf[lane] + sd * zbuf[lane], 0.0)
     for lane in range(BLOCK):
         ibuf[lane] = gain[lane] * ibuf[lane] + offset[lane]
-    if loss > 0.0:
+    if readout is not None and loss > 0.0:
         for lane in range(BLOCK):
             ibuf[lane] *= 1.0 - loss * after[lane]
-    if electrons[0] >= 0.0:
+    if readout is not None and electrons[0] >= 0.0:
         _shot_noise_block(ibuf, electrons, readout_key(model.key_shot, n), pix0, zbuf, bbuf,
                           shot_work)
-    if charge_sd[0] >= 0.0:  # accumulating charge noise (−1: off; padding lanes 0)
+    # accumulating charge noise (−1: off; padding lanes 0)
+    if readout is not None and charge_sd[0] >= 0.0:
         normals_into(readout_key(model.key_charge, n), pkeys, zbuf, bbuf)
         for lane in range(BLOCK):
             ibuf[lane] += charge_sd[lane] * zbuf[lane]
@@ -418,10 +423,10 @@ def _general_step(n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x
         m |= np.uint64(fire) << np.uint64(lane)
         frac[lane] = s
         whole[lane] = w
-    if loss > 0.0:
+    if readout is not None and loss > 0.0:
         for lane in range(BLOCK):
             after[lane] = 1.0 if ((m >> np.uint64(lane)) & _U1) != 0 else 0.0
-    if jitter > 0.0 and m != 0:
+    if readout is not None and jitter > 0.0 and m != 0:
         # the next cycle's threshold is θ(1 + ε)  ⇔  the charge shifts by −ε;
         # deviates for all lanes (vectorised), applied where the lane fired
         normals_into(readout_key(model.key_jitter, n), pkeys, zbuf, bbuf)
@@ -462,7 +467,7 @@ def _noise_rows(model, y, x0, electrons, charge_sd):
 
 @njit(**_inner)
 def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
-                scratch_f, scratch_u, ev, words):
+                scratch_f, scratch_u, ev, words, paper, event, readout):
     """All runs of one chunk (``runs``, a :class:`RunSchedule`) for one 64-pixel
     block and one accumulator set (``model``, a :class:`PixelModel`; its state
     ``frac``, ``whole`` and ``ev`` are the block's contiguous copies).
@@ -487,7 +492,7 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     gain = scratch_f[10]
     offset = scratch_f[11]
     _charge_rows(model, y, x0, gain, offset)
-    if model.event:  # (it reads the electrons)
+    if event is not None and model.event:  # (it reads the electrons)
         _noise_rows(model, y, x0, scratch_f[12], scratch_f[13])
         _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev,
                     words)
@@ -522,7 +527,7 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                 noise_rows = True
             _put(out, n0 - t_off, y, blk, _general_step(
                 n0, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width, model,
-                zbuf, bbuf, pkeys, shot_work, after))
+                zbuf, bbuf, pkeys, shot_work, after, paper, readout))
             continue
         t_a = runs.ta[r]
         inv = runs.inv[r]
@@ -556,8 +561,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
             _fast_static(n0, n1, ibuf, frac, out, t_off, y, blk, zero, scratch_u)
         elif use_fast:
             _fast_linear(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk, zero)
-        elif paper_fast_ok and fits and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset,
-                                                    model.paper_sg2, model.paper_sp2):
+        elif (paper is not None and paper_fast_ok and fits
+              and _paper_fits(n0, n1, t_a, inv, ia, di, gain, offset, model.paper_sg2,
+                              model.paper_sp2)):
             _fast_paper(n0, n1, t_a, inv, ia, di, gain, offset, frac, out, t_off, y, blk,
                         model, pkeys, ibuf, zbuf, sdbuf, bbuf, zero)
         else:
@@ -570,10 +576,10 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                     ibuf[lane] = ia[lane] + di[lane] * phi
                 _put(out, n - t_off, y, blk, _general_step(
                     n, ibuf, gain, offset, electrons, charge_sd, frac, whole, y, x0, width,
-                    model, zbuf, bbuf, pkeys, shot_work, after))
+                    model, zbuf, bbuf, pkeys, shot_work, after, paper, readout))
 
 
-@njit(inline="always", **_opts)
+@njit(**_inner)
 def _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words):
     """:func:`_block_runs` for the event sampler (``model.event``; same
     arguments, the rows set up).  Without charge loss, each run's charge is
@@ -636,7 +642,7 @@ def _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratc
                              ev_u)
 
 
-@njit(inline="always", **_opts)
+@njit(**_inner)
 def _hold_block(frames, y, x0, t_off, runs, model, frac, whole, out, q, work):
     """A chunk that is one hold (one run whose key frames are ``a == b``: a
     static scene, or any chunk after the last key) of a noise-free model
@@ -667,14 +673,14 @@ def _hold_block(frames, y, x0, t_off, runs, model, frac, whole, out, q, work):
 
 @njit(inline="always", **_opts)
 def _run_block(hold, frames, y, x0, width, t_off, runs, model, frac, whole, out, scratch_f,
-               scratch_u, ev, words):
+               scratch_u, ev, words, paper, event, readout):
     """The chunk's runs for one block and accumulator set: :func:`_hold_block`
     where the chunk is one ``hold`` and the model noise-free, else (or where it
     declines) :func:`_block_runs` (same arguments)."""
     if not (hold and model.fast_ok and _hold_block(frames, y, x0, t_off, runs, model, frac,
                                                    whole, out, scratch_f[2], scratch_u)):
         _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out, scratch_f,
-                    scratch_u, ev, words)
+                    scratch_u, ev, words, paper, event, readout)
 
 @njit(inline="always", **_opts)
 def _event_run(ev, lam, dlam, electrons, ev_f, ev_u, m, out, t_off, y, n, blk, count, zero,
@@ -731,10 +737,19 @@ def _aligned_rows(n, dtype):
     return buf[skip:skip + n * BLOCK].reshape((n, BLOCK))
 
 
-@njit(parallel=True, **_opts)
 def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
-                   twin, twin_model, twin_state, twin_out):
-    """Simulate readouts ``[runs.start[0], runs.stop[-1])`` for every pixel.
+                   twin, twin_model, twin_state, twin_out, paper, event, readout):
+    """Simulate readouts ``[runs.start[0], runs.stop[-1])`` for every pixel,
+    on the threads numba may use (``numba.set_num_threads``).
+
+    The rows are cut into groups of up to 8 (at least 64 groups when H ≥ 64)
+    and the groups dealt out to ``parts`` calls of :func:`simulate_rows`, call
+    ``k`` taking groups ``k, k + parts, …``: a row's cost follows the scene
+    (the event-driven shot noise costs per spike), so interleaved groups give
+    each call a share of the bright part.  The calls run on a pool of Python
+    threads; the kernel releases the GIL.  (numba's own parallel loop compiled
+    10 s longer than this kernel, a third of the noise-free family's compile
+    time on the reference machine.)
 
     Parameters
     ----------
@@ -772,57 +787,83 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
         Advance the noise-free twin (``twin_model``, ``twin_state``, written to
         ``twin_out``) in the same pass, from the same initial accumulator; when
         false those are placeholders of the same types.
+    paper, event, readout : None or True
+        The kernel family (:mod:`spikesim.families`): which noise code is
+        compiled.  ``None`` leaves a path out of the machine code altogether
+        (numba prunes a branch on ``arg is None`` before typing it); ``True``
+        compiles it, and the model's values then decide at run time as before.
+        ``paper``: paper-mode noise (its vector fast path and the per-readout
+        deviates); ``event``: shot noise drawn per spike (``spikesim._event``);
+        ``readout``: physical noise drawn per readout (shot noise of the
+        reference sampler, charge noise, threshold jitter, charge loss).  The
+        noise-free paths are always compiled (the clean twin takes them).
     """
-    # (no argument may be called ``sched``: numba's parallel loops use that name)
     height = frames.shape[0]
-    rows = max(1, min(8, height // 64))  # rows per task: at least 64 tasks when H ≥ 64
-    n_tasks = (height + rows - 1) // rows
-    step = spread_step(n_tasks) if model.event else 1  # (other modes cost the same per row)
-    for t in prange(n_tasks):
-        task = (t * step) % n_tasks
-        scratch_f = _aligned_rows(SCRATCH_F, np.float64)
-        scratch_u = _aligned_rows(SCRATCH_U, np.uint64)
-        ev = _aligned_rows(4, np.float64)  # a block's event state
-        ev[:] = 0.0
-        f = np.empty(BLOCK, np.uint64)  # a block's accumulator
-        w = np.empty(BLOCK, np.int64)
-        f0 = np.empty(BLOCK, np.uint64)  # its initial fraction, for the twin
-        words = np.empty(max(1, runs.stop[-1] - runs.start[0]), np.uint64)  # a run's spikes
-        for y in range(task * rows, min(height, task * rows + rows)):
-            _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init, keep,
-                          twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f,
-                          w, f0, words)
+    rows = max(1, min(8, height // 64))  # rows per group: at least 64 groups when H ≥ 64
+    groups = (height + rows - 1) // rows
+    threads = numba.get_num_threads()
+    parts = 1 if threads == 1 else min(groups, 4 * threads)
+    args = (rows, frames, np.int64(width), np.int64(t_off), runs, model, state, out,
+            np.int64(init), bool(keep), bool(twin), twin_model, twin_state, twin_out, paper,
+            event, readout)
+    if parts == 1:
+        simulate_rows(np.int64(0), np.int64(1), *args)
+        return
+    list(_thread_pool(threads).map(
+        lambda k: simulate_rows(np.int64(k), np.int64(parts), *args), range(parts)))
 
 
-@njit(**_opts)
-def spread_step(n):
-    """A stride coprime with ``n`` near ``n/φ`` (φ the golden ratio): visiting tasks
-    ``t·step mod n`` for ``t = 0, 1, …`` spreads any run of consecutive ``t`` over
-    the whole range.  The parallel loop gives each thread a contiguous range of
-    ``t`` (numba's OpenMP layer schedules statically), and a row's cost follows
-    the scene (event-driven shot noise costs per spike), so contiguous rows
-    would hand one thread the bright part: on the benchmark scene, whose top
-    half fires twice as often as its bottom, 15 % of the time at 2 threads."""
-    step = max(1, np.int64(round(n * 0.6180339887498949)))
-    while True:
-        a, b = n, step
-        while b != 0:
-            a, b = b, a % b
-        if a == 1:
-            return step
-        step += 1
+_POOL: list = [None, 0, 0]  # the pool, its size and the process that made it
+_POOL_LOCK = threading.Lock()
 
 
-@njit(**_inner)
+def _thread_pool(threads: int) -> ThreadPoolExecutor:
+    """A pool of ``threads`` threads kept between calls (made anew for another
+    size, or in a child process after a fork)."""
+    with _POOL_LOCK:
+        pool, size, pid = _POOL
+        if pool is None or size != threads or pid != os.getpid():
+            if pool is not None and pid == os.getpid():
+                pool.shutdown(wait=False)
+            _POOL[:] = [ThreadPoolExecutor(threads, thread_name_prefix="spikesim"), threads,
+                        os.getpid()]
+        return _POOL[0]
+
+
+@njit(nogil=True, **_opts)
+def simulate_rows(part, parts, rows, frames, width, t_off, runs, model, state, out, init, keep,
+                  twin, twin_model, twin_state, twin_out, paper, event, readout):
+    """The row groups ``part, part + parts, …`` (``rows`` rows each) of
+    :func:`simulate_chunk` (same other arguments), with the call's work rows.
+    The compiled entry point of a kernel family (``paper``, ``event``,
+    ``readout``); it releases the GIL."""
+    height = frames.shape[0]
+    scratch_f = _aligned_rows(SCRATCH_F, np.float64)
+    scratch_u = _aligned_rows(SCRATCH_U, np.uint64)
+    ev = _aligned_rows(4, np.float64)  # a block's event state
+    ev[:] = 0.0
+    f = np.empty(BLOCK, np.uint64)  # a block's accumulator
+    w = np.empty(BLOCK, np.int64)
+    f0 = np.empty(BLOCK, np.uint64)  # its initial fraction, for the twin
+    words = np.empty(max(1, runs.stop[-1] - runs.start[0]), np.uint64)  # a run's spikes
+    for group in range(part, (height + rows - 1) // rows, parts):
+        for y in range(group * rows, min(height, group * rows + rows)):
+            _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init,
+                          keep, twin, twin_model, twin_state, twin_out, scratch_f, scratch_u,
+                          ev, f, w, f0, words, paper, event, readout)
+
+
+@njit(inline="always", **_opts)
 def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
                   twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f, w, f0,
-                  words):
+                  words, paper, event, readout):
     """Row ``y`` of :func:`simulate_chunk` (same arguments), block by block,
     with the task's contiguous work rows (``scratch_f``, ``scratch_u``, see
     :func:`_block_runs`, and ``words``), the block's event state ``ev`` (4, 64),
-    accumulator ``f``, ``w`` and initial fraction ``f0`` (64))."""
+    accumulator ``f``, ``w`` and initial fraction ``f0`` (64)); ``paper``,
+    ``event``, ``readout``: the kernel family (:func:`simulate_chunk`)."""
     nblk = frames.shape[1]
-    use_aux = model.event or model.loss > 0.0
+    use_aux = (event is not None and model.event) or model.loss > 0.0
     frac = state.frac
     whole = state.whole
     aux = state.aux
@@ -832,11 +873,11 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
             and runs.a[0] == runs.b[0])
     for b in range(nblk):
         x0 = b * BLOCK
-        if model.event:
+        if event is not None and model.event:
             event_lane_keys(model.ev_keys, np.uint64(y * width + x0), scratch_u[_EV_U0:])
         if init >= 0:
             _init_block(f, w, init_key, y, x0, width, init == 1)
-            if model.event:
+            if event is not None and model.event:
                 init_event_block(ev, f, model.electrons[ey], x0, scratch_u[_EV_U0:])
             elif use_aux:
                 for lane in range(BLOCK):
@@ -851,7 +892,7 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
                     for lane in range(BLOCK):
                         ev[k, lane] = aux[k, y, x0 + lane]
         _run_block(hold, frames, y, x0, width, t_off, runs, model, f, w, out, scratch_f,
-                   scratch_u, ev, words)
+                   scratch_u, ev, words, paper, event, readout)
         if keep:
             _store_state(frac, whole, y, x0, f, w)
             if use_aux:
@@ -866,7 +907,7 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
             else:
                 _load_state(twin_state.frac, twin_state.whole, y, x0, f, w)
             _run_block(hold, frames, y, x0, width, t_off, runs, twin_model, f, w, twin_out,
-                       scratch_f, scratch_u, ev, words)
+                       scratch_f, scratch_u, ev, words, paper, event, readout)
             if keep:
                 _store_state(twin_state.frac, twin_state.whole, y, x0, f, w)
 

@@ -26,6 +26,8 @@ from pathlib import Path
 
 STAMP_NAME = "spikesim-sources.sha256"
 _CACHE_SUFFIXES = (".nbi", ".nbc")
+#: The marks ``spikesim.families`` leaves beside the cache files of a compiled family.
+FAMILY_MARK_PREFIX = "spikesim-compiled-"
 
 
 _COMPILER_IMPORT = re.compile(rb"^(?:import|from)[ \t]+(?:numba|llvmlite)\b", re.MULTILINE)
@@ -78,14 +80,6 @@ def cache_folder(source_folder: Path) -> Path:
         os.fspath(source_folder / "module.py"))
 
 
-def cache_is_cold(package_dir: Path | None = None) -> bool:
-    """Whether the next simulation compiles its kernels: no numba cache file for
-    the package's top-level modules yet (the first run after an install or an
-    update, which takes about a minute)."""
-    folder = cache_folder(package_dir or Path(__file__).parent)
-    return not any(folder.glob("*.nbi"))
-
-
 def sync_cache(package_dir: Path) -> bool:
     """Remove the numba cache files of ``package_dir``'s modules (in each of its
     folders' :func:`cache_folder`) when its sources changed since the last
@@ -98,7 +92,7 @@ def sync_cache(package_dir: Path) -> bool:
             return False
         for folder in {p.parent for p in package_dir.rglob("*.py")}:
             for path in cache_folder(folder).glob("*"):
-                if path.suffix in _CACHE_SUFFIXES:
+                if path.suffix in _CACHE_SUFFIXES or path.name.startswith(FAMILY_MARK_PREFIX):
                     path.unlink(missing_ok=True)
         stamp.parent.mkdir(parents=True, exist_ok=True)
         tmp = stamp.with_name(f"{STAMP_NAME}.{os.getpid()}.tmp")

@@ -8,14 +8,16 @@ correctly too.  These helpers express a 64-lane block step that way, and the
 noise-free ones a whole run of readouts with the accumulator kept in vector
 registers (a step per call keeps it in memory, which measured about half as
 fast).  Lane ``k`` maps to bit ``k`` of the result, the little-bit-order
-packed layout of docs/architecture.md, Conventions.  Where numba compiles for
-AVX-512, a few empty inline-asm copies steer LLVM's register use
-(:func:`_avx512`, :func:`_opaque`); other targets get the plain IR and the
-same bits.
+packed layout of docs/architecture.md, Conventions.  Everything here is plain,
+portable LLVM IR: a few helpers choose between two forms of the same
+operation by the target's instruction set (:func:`_target_features`, read
+from numba's public configuration or llvmlite's host query), and every form
+gives the same bits.
 """
 
 from __future__ import annotations
 
+import functools
 import platform
 
 from llvmlite import ir
@@ -27,26 +29,30 @@ LANES = 64
 _X86 = platform.machine().lower() in ("x86_64", "amd64", "i686", "x86")
 
 
+@functools.cache
+def _target_features() -> frozenset[str]:
+    """The CPU features numba compiles for: ``NUMBA_CPU_FEATURES`` when set
+    (numba's public configuration), else the host's (llvmlite's
+    ``get_host_cpu_features``), as numba itself chooses them."""
+    from llvmlite import binding
+    from numba.core import config
+
+    features = config.CPU_FEATURES
+    if features is None:
+        features = binding.get_host_cpu_features().flatten()
+    return frozenset(str(features).split(","))
+
+
 def _avx512(context) -> bool:
-    """Whether numba compiles for an x86 CPU with AVX-512 (the features of its
-    target machine: the host's, or ``NUMBA_CPU_FEATURES``).  The empty
-    inline-asm copies of :func:`_opaque` name 512-bit registers, which LLVM
-    cannot allocate for any other target (it stops with "couldn't allocate
-    output register for constraint 'v'"), and the problems they solve are
-    AVX-512's: elsewhere the plain IR is used."""
-    if not _X86:
-        return False
-    features = getattr(context.codegen(), "_tm_features", "") or ""
-    return "+avx512f" in str(features).split(",")
+    """Whether numba compiles for an x86 CPU with AVX-512 (``context`` unused:
+    the same answer for every function of a process)."""
+    return _X86 and "+avx512f" in _target_features()
 
 
 def _avx2_only(context) -> bool:
     """Whether numba compiles for an x86 CPU with AVX2 but not AVX-512: the
     target of :class:`_RunLanes`' pack path."""
-    if not _X86 or _avx512(context):
-        return False
-    features = getattr(context.codegen(), "_tm_features", "") or ""
-    return "+avx2" in str(features).split(",")
+    return _X86 and not _avx512(context) and "+avx2" in _target_features()
 
 
 def _pack_order(width=64) -> list[int]:
@@ -79,17 +85,6 @@ _PACK_ORDER32 = _pack_order(32)
 _PACK_SLOT32 = [_PACK_ORDER32.index(lane) for lane in range(LANES)]
 
 
-def _opaque(builder, value, constraint, after=()):
-    """``value`` passed through an empty inline-asm copy (``constraint`` "v": a
-    vector register, "r": a general one), so LLVM cannot look through it and
-    fold what follows into it; no instruction is emitted.  ``after`` (vectors
-    or integers): the copy also takes them as inputs, which orders the code
-    that uses the result after the code that makes them."""
-    fty = ir.FunctionType(value.type, [value.type] + [v.type for v in after])
-    inputs = "".join(",r" if isinstance(v.type, ir.IntType) else ",v" for v in after)
-    return builder.asm(fty, "", f"={constraint},0{inputs}", [value, *after], False)
-
-
 def _part(builder, vec, k):
     """Lanes ``[8k, 8k + 8)`` of a 64-lane vector (one 512-bit register of 64-bit lanes)."""
     lanes = ir.Constant(ir.VectorType(ir.IntType(32), 8), [8 * k + j for j in range(8)])
@@ -113,32 +108,18 @@ def _join(builder, parts):
     return parts[0]
 
 
-def _byte_of(builder, mask8, k, through_gpr=True):
-    """The 8 bits of an <8 x i1> as bits ``8k`` to ``8k + 7`` of an i64, moved
-    to a general register first where ``through_gpr`` (:func:`_mask_word`)."""
+def _byte_of(builder, mask8, k):
+    """The 8 bits of an <8 x i1> as bits ``8k`` to ``8k + 7`` of an i64."""
     i64 = ir.IntType(64)
     b = builder.bitcast(mask8, ir.IntType(8))
-    if through_gpr:
-        b = _opaque(builder, b, "r")
     return builder.shl(builder.zext(b, i64), i64(8 * k))
 
 
 def _mask_word(context, builder, mask):
-    """The 64 bits of a <64 x i1> (lane ``k`` → bit ``k``) as one i64.
-
-    With AVX-512, LLVM joins the eight mask registers with a chain of
-    ``kunpck`` instructions, which, like the vector compares that make the
-    masks, run on one execution port only (Intel): that port then limits a
-    noise-free readout loop.  Here each 8-lane mask moves to a general register
-    (``kmov``, another port) and the word is assembled there: the modulo loop
-    1.2× faster in a cache-resident loop, 9 % on a 1000 × 1000 stream
-    (measured).  Elsewhere: the plain bit cast."""
-    if not _avx512(context):
-        return builder.bitcast(mask, ir.IntType(LANES))
-    word = _byte_of(builder, _part(builder, mask, 0), 0)
-    for k in range(1, LANES // 8):
-        word = builder.or_(word, _byte_of(builder, _part(builder, mask, k), k))
-    return word
+    """The 64 bits of a <64 x i1> (lane ``k`` → bit ``k``) as one i64: the
+    plain bit cast, which LLVM lowers to vector compares into mask registers
+    (AVX-512) or ``movmsk`` (AVX2/SSE)."""
+    return builder.bitcast(mask, ir.IntType(LANES))
 
 
 def _is_u64_array(t) -> bool:
@@ -403,14 +384,9 @@ def _zero_reset_step(context, builder, lanes, old, inc):
     (wrapping), cleared where it carried.
 
     The lanes that keep their sum are decided before the add, ``old ≤ ~inc``
-    (no carry), so the clearing is the add itself with zero-masking.  With
-    AVX-512 the eight 8-lane parts are also put in order (each part's compare
-    after the previous part's add, :func:`_opaque`) and each mask goes straight
-    to its byte of the word (:func:`_byte_of`): LLVM otherwise made all eight
-    masks first, more than the seven mask registers a masked operation can
-    name, and the spilled ones went through memory on the loop's dependency
-    chain.  Measured on a 1000 × 1000 stream: 0.97–0.99× modulo's
-    throughput, against 0.78× before.  Without AVX-512 the carry is found as
+    (no carry), so the clearing is the add itself with zero-masking, in
+    eight 8-lane parts whose masks go straight to their byte of the word
+    (:func:`_byte_of`; AVX-512).  Without AVX-512 the carry is found as
     modulo's (``old + inc < old``, :meth:`_RunLanes.carry`) and the sum then
     cleared: on an AVX2 host (no unsigned compare, no masked add) 0.82×
     [0.66–0.83] and 0.82× [0.74–1.04] of modulo's throughput against 0.74×
@@ -426,8 +402,6 @@ def _zero_reset_step(context, builder, lanes, old, inc):
     word = None
     for k in range(LANES // 8):
         o = _part(builder, old, k)
-        if parts:
-            o = _opaque(builder, o, "v", after=parts[-1:])
         keep_k = builder.icmp_unsigned("<=", o, _part(builder, limit, k))
         parts.append(builder.select(keep_k, builder.add(o, _part(builder, inc, k)),
                                     ir.Constant(o.type, None)))
@@ -764,7 +738,6 @@ def _event_cached_run(zero_reset, static):
             fvec = ir.VectorType(ir.DoubleType(), LANES)
             part = ir.VectorType(ir.DoubleType(), 8)
             zero = i64(0)
-            wide = _avx512(context)
             wait_ptr = _lanes_ptr(context, builder, sig, args, 0, zero, fvec)
             lo_ptr = _lanes_ptr(context, builder, sig, args, 5, zero, fvec)
             # static: λ itself, loaded once; moving: λ and its change read in the
@@ -811,14 +784,12 @@ def _event_cached_run(zero_reset, static):
             k = builder.load(k_slot)
             builder.cbranch(builder.icmp_signed("<", k, count_), body, done)
             builder.position_at_end(body)
-            word = taken = prev = None
+            word = taken = None
             m = None if static else _splat(builder, part, builder.sitofp(
                 builder.add(m_first, k), ir.DoubleType()))
             for j in range(LANES // 8):  # 8 lanes at a time, in order (see the docstring)
                 lam = lam_static[j] if static else electrons_at(m, j)
                 w_in = builder.load(w_slots[j])
-                if wide and prev is not None:
-                    w_in = _opaque(builder, w_in, "v", after=prev)
                 w = builder.fsub(w_in, lam)
                 fired = builder.fcmp_ordered("<=", w, fzero)
                 lo = builder.load(lo_slots[j])
@@ -833,10 +804,9 @@ def _event_cached_run(zero_reset, static):
                                            new_w)
                 w = builder.select(take, new_w, w)
                 builder.store(w, w_slots[j])
-                fired_byte, take_byte = (_byte_of(builder, m, j, wide) for m in (fired, take))
+                fired_byte, take_byte = (_byte_of(builder, m, j) for m in (fired, take))
                 word = fired_byte if word is None else builder.or_(word, fired_byte)
                 taken = take_byte if taken is None else builder.or_(taken, take_byte)
-                prev = (w, lo, word, taken)
             builder.store(builder.or_(builder.load(used_slot), taken), used_slot)
             _store_word(builder, data, builder.add(first_, builder.mul(k, stride_)), word,
                         nbytes_)
@@ -879,11 +849,9 @@ event_cached_run64.__doc__ = """Up to ``count`` readouts of the event-driven sho
     took their draw (once each at most), whose need and cycle the caller then
     advances (:func:`spikesim._event.event_sync`).
 
-    Each readout works through the block 8 lanes at a time, in order (with
-    AVX-512 each part's code follows the previous part's, :func:`_opaque`, and
-    its bits go through general registers, :func:`_byte_of`): on 64-lane
+    Each readout works through the block 8 lanes at a time (on 64-lane
     vectors LLVM made all sixteen masks of a readout first and spilled most of
-    them (17.4 against 11.1 ns a block-readout, static, cache-resident)."""
+    them: 17.4 against 11.1 ns a block-readout, static, cache-resident)."""
 #: The same for zero reset (a lane takes ``gnext`` itself), and for runs of
 #: constant radiance (``dlam`` all zero, the caller checks), which subtract
 #: ``lam`` itself (``dlam``, ``m0`` and ``lam_max`` unread).

@@ -29,6 +29,7 @@ COMMAND_MODULES = (
     "preview",
     "analyze",
     "verify",
+    "compile",
 )
 
 EXIT_OK = 0

@@ -18,7 +18,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-from spikesim import _kernels, _mosaic, rng
+from spikesim import _kernels, _mosaic, families, rng
 from spikesim._memory import ArrayPool, RecycledOutput
 from spikesim._validate import check_flag, check_int
 from spikesim._version import __version__
@@ -268,6 +268,9 @@ class SimulationRun:
                                             self.shot_sampler == "event", _STATE_POOL)
         clean, clean_state = (_kernel_inputs(sensor, self.seed, None, pool=_STATE_POOL)
                               if self.clean_twin else _unused_inputs())
+        family = families.family_of(noisy)  # the noise code the kernel compiles
+        markers = families.family_markers(family)
+        families.announce_compile(family)
         dummy_out = np.zeros((1, 1, 1), np.uint8)
         init = 1 if sensor.init == "uniform" else 0  # the kernel's first call initialises
         bar = None
@@ -295,7 +298,9 @@ class SimulationRun:
                     c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
                 _kernels.simulate_chunk(key_buffer, w, n0, sched, noisy, noisy_state, out, init,
                                         n1 < self.n_readouts,  # keep the state for a next chunk
-                                        self.clean_twin, clean, clean_state, c_out)
+                                        self.clean_twin, clean, clean_state, c_out, *markers)
+                if init != -1:
+                    families.mark_compiled(family)
                 init = -1  # later chunks carry the state on
                 gt, sel = self._ground_truth(n0, n1)
                 yield SpikeChunk(n0, out, c_out if self.clean_twin else None, gt, sel)

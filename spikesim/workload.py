@@ -17,16 +17,13 @@ from __future__ import annotations
 import math
 import os
 import shutil
-import sys
 import warnings
 from pathlib import Path
 
-from spikesim._numba_cache import cache_is_cold
 from spikesim.errors import SpikeSimFileError, SpikeSimValueError
 
-__all__ = ["KEY_FRAME_WARN", "RunawayWorkWarning", "announce_cold_cache", "cache_is_cold",
-           "check_free_space", "check_key_frames", "check_memory", "estimate_key_frames",
-           "require_reasonable_key_frames"]
+__all__ = ["KEY_FRAME_WARN", "RunawayWorkWarning", "check_free_space", "check_key_frames",
+           "check_memory", "estimate_key_frames", "require_reasonable_key_frames"]
 
 #: Key frames above which a simulation is flagged (about a minute of rendering at 256 x 256).
 KEY_FRAME_WARN = 20_000
@@ -122,16 +119,3 @@ def check_memory(height: int, width: int, option: str = "--size") -> None:
             f"{option} {height}x{width} needs about {need / 2**30:.3g} GiB of memory but "
             f"{free / 2**30:.3g} GiB is free: ask for a smaller {option}, or pass --force "
             "to try anyway")
-
-
-def _interactive() -> bool:
-    return sys.stderr.isatty()
-
-
-def announce_cold_cache(label: str) -> None:
-    """Say on a terminal's stderr, before the work, that the simulation kernels will be
-    compiled (:func:`cache_is_cold`): about a minute in which a progress bar stays at 0."""
-    if _interactive() and cache_is_cold():
-        print(f"{label}: note: compiling the simulation kernels (the first run after "
-              "installing or updating spikesim: about a minute on 2 cores; later runs load "
-              "them)", file=sys.stderr)

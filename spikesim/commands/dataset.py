@@ -92,9 +92,6 @@ def run(args) -> int:
         return 0
     if not args.out:
         raise SpikeSimValueError("--out is required (the output folder)")
-    from spikesim.workload import announce_cold_cache
-
-    announce_cold_cache("spikesim dataset")
     try:
         summary = build_dataset(manifest, args.out, workers=args.workers,
                                 scheduler=args.scheduler, dask_local=args.dask_local,

@@ -177,9 +177,7 @@ def run(args) -> int:
     if not args.force:
         check_free_space(out, packed_bytes * (2 if args.clean_twin else 1))
         require_reasonable_key_frames(scene, args.readouts / sensor.clock_hz)
-    from spikesim.workload import announce_cold_cache
 
-    announce_cold_cache("spikesim simulate")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RunawayWorkWarning)  # checked above (or --force)
         run_ = ss.simulate_chunks(scene, sensor, args.readouts, seed=args.seed,

@@ -218,6 +218,21 @@ def _check_out_dir(out: Path, name: str = "out_dir") -> None:
                         "or extend that dataset, or a new folder")
 
 
+def compile_first(tasks: list[dict]) -> list[str]:
+    """Compile the kernel families ``tasks`` need (:mod:`spikesim.families`) in
+    this process, before local workers start, so that they load the machine
+    code from numba's cache rather than each compiling it at the same time.
+    Returns the families compiled (none when all were cached)."""
+    from spikesim.families import family_of_noise, is_compiled, precompile
+    from spikesim.sensor import Sensor
+
+    needed = {family_of_noise(Sensor.from_dict(t["sensor"]).noise) for t in tasks}
+    cold = sorted(name for name in needed if not is_compiled(name))
+    if cold:
+        precompile(cold)
+    return cold
+
+
 def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int = 1,
                   scheduler: str | None = None, dask_local: int | None = None,
                   progress: bool = True, limit: int | None = None,
@@ -317,6 +332,8 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
         elif scheduler is not None or dask_local is not None:
             summary.executor = (f"dask scheduler {scheduler}" if scheduler is not None
                                 else f"dask LocalCluster ({dask_local} workers)")
+            if dask_local is not None:
+                compile_first(pending)
             _run_dask(pending, out, scheduler, dask_local, on_result)
         elif workers == 1 or len(pending) <= 1:
             summary.executor = "serial"
@@ -328,6 +345,7 @@ def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int =
                 frame_cache.clear()  # the memory goes back when the build ends
         else:
             summary.executor = f"{workers} local processes"
+            compile_first(pending)
             with worker_thread_env(max(1, (os.cpu_count() or 1) // workers)):
                 _run_pool(pending, out, workers, on_result)
     except BaseException as exc:

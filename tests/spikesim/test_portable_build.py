@@ -1,9 +1,7 @@
 """The kernels build for CPUs without AVX-512 and give the same bits there.
 
-The vector helpers (``spikesim._simd``) steer LLVM's AVX-512 code with empty
-inline-asm copies that name 512-bit registers; compiled for a CPU without
-them, LLVM stopped the process ("couldn't allocate output register for
-constraint 'v'").  This test compiles every kernel for a Haswell (AVX2, the
+The vector helpers (``spikesim._simd``) pick some of their IR by the target's
+instruction set.  This test compiles every kernel for a Haswell (AVX2, the
 common laptop and pre-Zen-4 AMD case) in a fresh numba cache and compares the
 spikes of each noise model and reset mode, static and moving, with this
 process's build.

@@ -405,39 +405,6 @@ def test_prefer_wide_vectors_marks_the_calling_function():
     assert '"prefer-vector-width"="512"' in attributes and "noinline" in attributes
 
 
-def _compiles_for_avx512():
-    from numba.core.registry import cpu_target
-
-    from spikesim._simd import _avx512
-
-    return _avx512(cpu_target.target_context)
-
-
-@pytest.mark.skipif(not _compiles_for_avx512(), reason="the AVX-512 code paths only")
-def test_readout_loops_keep_port_5_free_and_their_masks_in_registers():
-    """The readout loops assemble their words in general registers (no
-    ``kunpck`` chain, which runs on one port only and limited the modulo
-    loop), and spill no mask register to the stack: a spilled mask went
-    through memory on the loop's dependency chain (zero reset: 0.78× modulo's
-    throughput, against 0.98× without; the event-driven loop, which spilled
-    most of its masks, 17.4 against 11.3 ns a block-readout on a static
-    run)."""
-    acc, inc = np.zeros(64, np.uint64), np.ones(64, np.uint64)
-    out = np.zeros(64, np.uint8)
-    for zero in (False, True):
-        _runs(acc, inc, out, 0, 8, 8, 3, zero)
-    x = np.ones(64)
-    for zero in (False, True):
-        # wait, lam, dlam, electrons, gnext, wmin, m0, lam_max, backlog, out bytes
-        _static_event_run(zero, x.copy(), x, 0 * x, x, x, x, 0, 2.0**62, -(2.0**62),
-                          out, 0, 8, 8, 3)
-    for fn, op in ((_runs, "vpaddq"), (_static_event_run, "vsubpd")):
-        asm = "".join(fn.inspect_asm().values())
-        assert op in asm and "kmov" in asm  # the loops are there, on 512-bit vectors
-        assert "kunpck" not in asm
-        assert not re.search(r"kmov[bwdq]\s+%k\d+,\s*-?\d*\(%rsp\)", asm)
-
-
 @njit(cache=False)
 def _static_event_run(zero, *args):
     if zero:

@@ -184,34 +184,25 @@ def test_simulate_names_a_missing_video_and_an_output_folder_that_is_a_file(tmp_
         assert message in err and len(err.strip().splitlines()) == 1, err
 
 
-def test_a_cold_kernel_cache_is_announced(tmp_path, capsys, monkeypatch):
-    """The first run after an install compiles for about a minute with a progress bar at
-    0: the commands say so first, on a terminal. The cache is cold when no numba index
-    file is beside the modules, or, under a user's NUMBA_CACHE_DIR, in the folder numba
-    keeps for them there."""
-    from spikesim import workload
+def test_the_first_run_of_a_kernel_family_says_it_compiles(tmp_path, capsys, monkeypatch):
+    """The first run of a kernel family after an install compiles it: the run says so
+    once per process, on stderr whether or not it is a terminal, with how long it
+    takes and where the cache lives (``spikesim.families``)."""
+    from spikesim import families
 
-    pkg = tmp_path / "pkg"
-    (pkg / "__pycache__").mkdir(parents=True)
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
-    assert workload.cache_is_cold(pkg)
-    (pkg / "__pycache__" / "_kernels.simulate_chunk-1.py311.nbi").write_bytes(b"")
-    assert not workload.cache_is_cold(pkg)
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "user"))
-    assert workload.cache_is_cold(pkg)  # nothing there yet, whatever lies beside the modules
-    from spikesim._numba_cache import cache_folder
-
-    cache_folder(pkg).mkdir(parents=True)
-    (cache_folder(pkg) / "_kernels.simulate_chunk-1.py311.nbi").write_bytes(b"")
-    assert not workload.cache_is_cold(pkg)
-    monkeypatch.setattr(workload, "cache_is_cold", lambda package_dir=None: True)
+    monkeypatch.delenv("SPIKESIM_QUIET_COMPILE", raising=False)
+    monkeypatch.setattr(families, "_announced", set())
+    monkeypatch.setattr(families, "is_compiled", lambda name: False)
+    monkeypatch.setattr(families, "mark_compiled", lambda name: None)
     args = ["simulate", "astronaut", "--readouts", "5", "--size", "8x8"]
     assert main([*args, "--out", str(tmp_path / "s.h5")]) == 0
-    assert "note: compiling" not in capsys.readouterr().err  # not a terminal: not said
-    monkeypatch.setattr(workload, "_interactive", lambda: True)
+    err = capsys.readouterr().err
+    assert "compiling the noise-free simulation kernels for this machine" in err
+    assert "cached in" in err
     assert main([*args, "--out", str(tmp_path / "t.h5")]) == 0
-    assert "spikesim simulate: note: compiling the simulation kernels" in \
-        capsys.readouterr().err
+    assert "compiling" not in capsys.readouterr().err  # once per process
+    assert main([*args, "--sensor", "sjdd-gn", "--out", str(tmp_path / "u.h5")]) == 0
+    assert "compiling the paper simulation kernels" in capsys.readouterr().err
 
 
 def test_dataset_quiet_draws_no_bar(tmp_path, capsys):
