@@ -30,7 +30,7 @@ from spikesim.scenes.static import validate_grey, validate_radiance
 from spikesim.schedule import build_schedule, key_readout_times
 from spikesim.sensor import Sensor
 from spikesim.stream import SpikeChunk, SpikeStream
-from spikesim.workload import check_key_frames
+from spikesim.workload import check_key_frames, check_stream_memory
 
 __all__ = ["SimulationRun", "simulate", "simulate_chunks"]
 
@@ -77,7 +77,8 @@ class SimulationRun:
                             f"the sensor size (height, width) = {sensor.shape}")
         self.scene = scene
         self.sensor = sensor
-        self.n_readouts = check_int("n_readouts", n_readouts, 1)
+        # readout times are float64 seconds and indices int64: exact up to 2**53 (as the CLI)
+        self.n_readouts = check_int("n_readouts", n_readouts, 1, 2**53, unit="readouts")
         check_key_frames(scene, self.n_readouts / sensor.clock_hz)
         self.seed = check_int("seed", seed, 0, 2**64 - 1)
         self.clean_twin = check_flag("clean_twin", clean_twin)
@@ -530,6 +531,8 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
     """
     run = SimulationRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
                         chunk_readouts, progress, shot_sampler=shot_sampler)
+    check_stream_memory(run.n_readouts, sensor.height, sensor.width, run.clean_twin,
+                        len(run.gt_readouts))  # the whole stream is held: refuse what cannot fit
     h, nb = sensor.height, packed_width(sensor.width)
     packed = np.empty((run.n_readouts, h, nb), np.uint8)
     clean = np.empty_like(packed) if run.clean_twin else None

@@ -124,6 +124,24 @@ def check_memory(height: int, width: int, option: str = "--size") -> None:
             "to try anyway")
 
 
+def check_stream_memory(n_readouts: int, height: int, width: int, clean_twin: bool = False,
+                        n_gt: int = 0) -> None:
+    """Raise :class:`SpikeSimValueError` naming ``n_readouts`` when a stream held
+    whole in memory (:func:`spikesim.simulate`) would not fit: its packed bits
+    (``n_readouts·height·⌈width/8⌉`` bytes, twice with a clean twin) and its
+    ``n_gt`` ground-truth frames (12 bytes a pixel) against
+    :func:`available_memory`, before anything is allocated."""
+    need = n_readouts * height * -(-width // 8) * (2 if clean_twin else 1) \
+        + n_gt * height * width * 12
+    free = available_memory()
+    if free is not None and need > free:
+        raise SpikeSimValueError(
+            f"n_readouts={n_readouts} of a {height}x{width} sensor needs about "
+            f"{need / 2**30:.3g} GiB held in memory but {free / 2**30:.3g} GiB is free: ask "
+            "for fewer readouts or fewer ground-truth frames, or stream the chunks with "
+            "spikesim.simulate_chunks (or spikesim.io.write_h5) instead")
+
+
 def _interactive() -> bool:
     return sys.stderr.isatty()
 
