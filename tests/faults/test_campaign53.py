@@ -68,3 +68,64 @@ def test_simulate_chunks_takes_any_indexable_length_and_no_more():
     with pytest.raises(SpikeSimValueError, match=r"n_readouts=.*\[1, 9007199254740992\]"):
         ss.simulate_chunks(scene, sensor, 2**53 + 1)
 
+
+# --- dry runs that passed what the build then failed: video options ----------------------
+def _video_manifest(tmp_path, **source):
+    clip = write_frames(tmp_path / "clip", 4, size=(48, 64), px_per_frame=2)
+    src = {"kind": "video", "path": str(clip), "fps": 100.0, "split": "train", **source}
+    return {"dataset": {"name": "v", "size": [16, 16], "window": 20},
+            "sensor": {"preset": "ideal"}, "noise": [{"mode": "none", "label": "c"}],
+            "sources": [src]}
+
+
+@pytest.mark.parametrize("options,needle", [
+    ({"wobble": 1}, "sources[0].options.wobble=1 is invalid: expected a keyword"),
+    ({"max_px": -3}, "sources[0].options.max_px=-3"),
+    ({"max_px": {"uniform": [-1, 2]}}, "sources[0].options.max_px=-1.0"),
+    ({"flow": {"choice": ["farneback", "nope"]}}, "sources[0].options.flow='nope'"),
+    ({"fps": 30}, "sources[0].options.fps"),
+])
+def test_video_options_are_checked_at_load(tmp_path, options, needle):
+    from spikesim.dataset import parse_manifest
+
+    with pytest.raises(SpikeSimValueError) as info:
+        parse_manifest(_video_manifest(tmp_path, options=options))
+    assert needle in str(info.value), str(info.value)
+
+
+@pytest.mark.filterwarnings("ignore::Warning")  # (the aspect ratio's warning)
+def test_valid_video_options_still_load(tmp_path):
+    from spikesim.dataset import parse_manifest, plan_tasks
+
+    m = parse_manifest(_video_manifest(tmp_path, options={"max_px": {"uniform": [0.5, 2]},
+                                                          "occlusion": False}))
+    (task,) = plan_tasks(m)
+    assert 0.5 <= task.scene["options"]["max_px"] <= 2
+
+
+def test_video_options_dry_run_exits_1(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    write_frames(tmp_path / "clip", 4, size=(48, 64), px_per_frame=2)
+    (tmp_path / "m.toml").write_text(
+        '[dataset]\nname = "v"\nsize = [16, 16]\nwindow = 20\n\n[sensor]\npreset = "ideal"\n\n'
+        '[[sources]]\nkind = "video"\npath = "clip"\nfps = 100.0\noptions = {wobble = 1}\n')
+    _fails("spikesim", ["dataset", "m.toml", "--out", "ds", "--dry-run"],
+           "sources[0].options.wobble")
+    assert not (tmp_path / "ds").exists()
+
+
+# --- unbounded planning: per_second is capped as count is --------------------------------
+@pytest.mark.parametrize("per_second,needle", [
+    (1e9, "at most 1,000,000 clips a video"), (1e7, "at most 1,000,000 clips a video"),
+    (float("inf"), "a finite number > 0")])
+def test_per_second_is_capped(tmp_path, per_second, needle):
+    import time
+
+    from spikesim.dataset import parse_manifest
+
+    t0 = time.perf_counter()
+    with pytest.raises(SpikeSimValueError, match="sources\\[0\\].per_second") as info:
+        parse_manifest(_video_manifest(tmp_path, per_second=per_second, fps=4.0))
+    assert needle in str(info.value)
+    assert time.perf_counter() - t0 < 30  # refused at once, not after planning
+
