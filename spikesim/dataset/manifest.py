@@ -634,9 +634,13 @@ def _check_variables(variables: dict, used: set[str], origin: str) -> None:
             "check the spelling or drop it")
 
 
-def _substitute(value, variables: dict, origin: str):
+def _substitute(value, variables: dict, origin: str, is_path: bool = False):
+    """``${NAME}`` replaced in every string.  A source ``path`` that starts with a
+    variable whose value is a relative path is resolved against the current
+    directory (where the user typed ``--set`` or set the variable), not against
+    the manifest's folder (a built-in manifest's is inside the package)."""
     if isinstance(value, dict):
-        return {k: _substitute(v, variables, origin) for k, v in value.items()}
+        return {k: _substitute(v, variables, origin, k == "path") for k, v in value.items()}
     if isinstance(value, list):
         return [_substitute(v, variables, origin) for v in value]
     if not isinstance(value, str):
@@ -649,7 +653,10 @@ def _substitute(value, variables: dict, origin: str):
             raise SpikeSimValueError(
                 f"manifest {origin} needs {name}: give --set {name}=VALUE (or set the "
                 f"environment variable {name})")
-        return str(found)
+        found = str(found)
+        if is_path and match.start() == 0 and found:
+            found = str(Path.cwd() / Path(found).expanduser())  # (an absolute one stays)
+        return found
 
     return _VAR.sub(one, value)
 

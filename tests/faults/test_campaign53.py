@@ -129,3 +129,31 @@ def test_per_second_is_capped(tmp_path, per_second, needle):
     assert needle in str(info.value)
     assert time.perf_counter() - t0 < 30  # refused at once, not after planning
 
+
+# --- spikejdd: an empty --methods; a relative root given with --set -----------------------
+@pytest.mark.parametrize("argv", [
+    ["evaluate", "--sweep", "--methods", ""], ["evaluate", "--sweep", "--methods", " , "],
+    ["reconstruct", "x.h5", "--methods", "", "--out", "o"]])
+def test_empty_methods_is_an_error(tmp_path, monkeypatch, argv):
+    monkeypatch.chdir(tmp_path)
+    _fails("spikejdd", argv, "--methods", "at least one method")
+
+
+def test_relative_set_path_is_from_the_current_directory(tmp_path, monkeypatch):
+    from spikesim.dataset import load_manifest
+
+    write_frames(tmp_path / "data" / "clip", 4, size=(48, 64), px_per_frame=2)
+    folder = tmp_path / "manifests"
+    folder.mkdir()
+    (folder / "m.toml").write_text(
+        '[dataset]\nname = "v"\nsize = [16, 16]\nwindow = 20\n\n[sensor]\npreset = "ideal"\n\n'
+        '[[sources]]\nkind = "video"\npath = "${CLIPS}/clip"\nfps = 100.0\n\n'
+        '[[sources]]\nkind = "video"\npath = "clip"\nfps = 100.0\n')
+    write_frames(folder / "clip", 4, size=(48, 64), px_per_frame=2)
+    monkeypatch.chdir(tmp_path)
+    m = load_manifest(folder / "m.toml", {"CLIPS": "data"})
+    assert m.sources[0].path == str(tmp_path / "data" / "clip")
+    assert m.sources[1].path == str(folder / "clip")  # a plain relative path: the manifest's
+    m = load_manifest(folder / "m.toml", {"CLIPS": str(tmp_path / "data")})  # absolute: as is
+    assert m.sources[0].path == str(tmp_path / "data" / "clip")
+
