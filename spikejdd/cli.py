@@ -100,7 +100,16 @@ def _ensemble_option(p) -> None:
 
 
 def _methods(text: str | None) -> list[str]:
-    return [m.strip() for m in text.split(",") if m.strip()] if text else []
+    """``--methods``: the comma-separated names; [] when the option is not given
+    (the command's default), an error when it is given but names none."""
+    if text is None:
+        return []
+    names = [m.strip() for m in text.split(",") if m.strip()]
+    if not names:
+        raise bad_value("--methods", text, "at least one method name, comma-separated "
+                                           "(`spikejdd methods` lists them); leave --methods "
+                                           "out for the default")
+    return names
 
 
 def _train_parser(sub) -> None:

@@ -30,7 +30,7 @@ from spikesim.scenes.static import validate_grey, validate_radiance
 from spikesim.schedule import build_schedule, key_readout_times
 from spikesim.sensor import Sensor
 from spikesim.stream import SpikeChunk, SpikeStream
-from spikesim.workload import check_key_frames
+from spikesim.workload import check_key_frames, check_stream_memory
 
 __all__ = ["SimulationRun", "simulate", "simulate_chunks"]
 
@@ -77,7 +77,8 @@ class SimulationRun:
                             f"the sensor size (height, width) = {sensor.shape}")
         self.scene = scene
         self.sensor = sensor
-        self.n_readouts = check_int("n_readouts", n_readouts, 1)
+        # readout times are float64 seconds and indices int64: exact up to 2**53 (as the CLI)
+        self.n_readouts = check_int("n_readouts", n_readouts, 1, 2**53, unit="readouts")
         check_key_frames(scene, self.n_readouts / sensor.clock_hz)
         self.seed = check_int("seed", seed, 0, 2**64 - 1)
         self.clean_twin = check_flag("clean_twin", clean_twin)
@@ -473,18 +474,36 @@ def _padded_width(width: int) -> int:
     return _kernels.BLOCK * math.ceil(width / _kernels.BLOCK)
 
 
+def _check_backend(backend, device) -> str:
+    """``backend`` checked: "numba" (the kernel) or "torch" (``spikesim.torch_backend``)."""
+    if backend not in ("numba", "torch"):
+        raise bad_value("backend", backend, "'numba' or 'torch'")
+    if backend == "numba" and device is not None:
+        raise bad_value("device", device, "None with backend='numba' (a device is a "
+                        "backend='torch' setting)")
+    return backend
+
+
 def simulate_chunks(scene, sensor: Sensor, n_readouts: int, seed: int = 0,
                     clean_twin: bool = False, gt_readouts: Sequence[int] | str | None = None,
                     chunk_readouts: int | None = 256, progress: bool = False, *,
-                    shot_sampler: str = "event") -> SimulationRun:
-    """Configure a simulation whose chunks are produced lazily (see :class:`SimulationRun`)."""
+                    shot_sampler: str = "event", backend: str = "numba",
+                    device=None) -> SimulationRun:
+    """Configure a simulation whose chunks are produced lazily (see :class:`SimulationRun`;
+    ``backend``, ``device``: as :func:`simulate`)."""
+    if _check_backend(backend, device) == "torch":
+        from spikesim.torch_backend import TorchRun
+
+        return TorchRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
+                        chunk_readouts, progress, shot_sampler=shot_sampler, device=device)
     return SimulationRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
                          chunk_readouts, progress, shot_sampler=shot_sampler)
 
 
 def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: bool = False,
              gt_readouts: Sequence[int] | str | None = None, chunk_readouts: int | None = None,
-             progress: bool = False, *, shot_sampler: str = "event") -> SpikeStream:
+             progress: bool = False, *, shot_sampler: str = "event", backend: str = "numba",
+             device=None) -> SpikeStream:
     """Simulate ``n_readouts`` readouts of ``sensor`` looking at ``scene``.
 
     Parameters
@@ -515,6 +534,13 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
         ``spikesim._event``), ``"readout"`` a Poisson count per pixel and
         readout (work per readout).  Same law, different bits; a model with
         ``charge_noise_electrons`` > 0 always draws per readout.
+    backend : {"numba", "torch"}
+        ``"torch"``: the same model, with the same bits, in PyTorch tensor code
+        (:mod:`spikesim.torch_backend`, docs/torch.md; no noise and paper noise;
+        needs the ``[torch]`` extra).
+    device : torch device, optional
+        With ``backend="torch"``: where to simulate (default CUDA when available,
+        else the CPU).
 
     Returns
     -------
@@ -533,8 +559,16 @@ def simulate(scene, sensor: Sensor, n_readouts: int, seed: int = 0, clean_twin: 
     >>> float(stream.unpack().mean()), stream.gt.shape, stream.gt_index.tolist()
     (0.3, (1, 4, 8, 3), [50])
     """
-    run = SimulationRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
-                        chunk_readouts, progress, shot_sampler=shot_sampler)
+    if _check_backend(backend, device) == "torch":
+        from spikesim.torch_backend import TorchRun
+
+        run = TorchRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
+                       chunk_readouts, progress, shot_sampler=shot_sampler, device=device)
+    else:
+        run = SimulationRun(scene, sensor, n_readouts, seed, clean_twin, gt_readouts,
+                            chunk_readouts, progress, shot_sampler=shot_sampler)
+    check_stream_memory(run.n_readouts, sensor.height, sensor.width, run.clean_twin,
+                        len(run.gt_readouts))  # the whole stream is held: refuse what cannot fit
     h, nb = sensor.height, packed_width(sensor.width)
     packed = np.empty((run.n_readouts, h, nb), np.uint8)
     clean = np.empty_like(packed) if run.clean_twin else None

@@ -23,7 +23,8 @@ from pathlib import Path
 from spikesim.errors import SpikeSimFileError, SpikeSimValueError
 
 __all__ = ["KEY_FRAME_WARN", "RunawayWorkWarning", "check_free_space", "check_key_frames",
-           "check_memory", "estimate_key_frames", "require_reasonable_key_frames"]
+           "check_memory", "check_stream_memory", "estimate_key_frames",
+           "require_reasonable_key_frames"]
 
 #: Key frames above which a simulation is flagged (about a minute of rendering at 256 x 256).
 KEY_FRAME_WARN = 20_000
@@ -119,3 +120,21 @@ def check_memory(height: int, width: int, option: str = "--size") -> None:
             f"{option} {height}x{width} needs about {need / 2**30:.3g} GiB of memory but "
             f"{free / 2**30:.3g} GiB is free: ask for a smaller {option}, or pass --force "
             "to try anyway")
+
+
+def check_stream_memory(n_readouts: int, height: int, width: int, clean_twin: bool = False,
+                        n_gt: int = 0) -> None:
+    """Raise :class:`SpikeSimValueError` naming ``n_readouts`` when a stream held
+    whole in memory (:func:`spikesim.simulate`) would not fit: its packed bits
+    (``n_readouts·height·⌈width/8⌉`` bytes, twice with a clean twin) and its
+    ``n_gt`` ground-truth frames (12 bytes a pixel) against
+    :func:`available_memory`, before anything is allocated."""
+    need = n_readouts * height * -(-width // 8) * (2 if clean_twin else 1) \
+        + n_gt * height * width * 12
+    free = available_memory()
+    if free is not None and need > free:
+        raise SpikeSimValueError(
+            f"n_readouts={n_readouts} of a {height}x{width} sensor needs about "
+            f"{need / 2**30:.3g} GiB held in memory but {free / 2**30:.3g} GiB is free: ask "
+            "for fewer readouts or fewer ground-truth frames, or stream the chunks with "
+            "spikesim.simulate_chunks (or spikesim.io.write_h5) instead")

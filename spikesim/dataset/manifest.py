@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import math
 import os
 import re
 import tomllib
@@ -61,6 +62,11 @@ class NoiseSpec:
     params: dict = field(default_factory=dict)  # name -> Distribution
     weight: float = 1.0
     label: str = ""
+
+
+#: Most sequences a source's ``count`` (clips a video, for video sources) may ask for,
+#: and most clips a video's ``per_second`` may give.
+MAX_CLIPS = 10**6
 
 
 @dataclass(frozen=True)
@@ -248,7 +254,7 @@ def _parse_source(i: int, t: dict, base: Path, clip_s: float = 0.0,
             raise bad_value(f"{path}.options", options, "a table of scene keywords")
         opts = {k: parse_distribution(f"{path}.options.{k}", v, "any") for k, v in options.items()}
         _try_procedural(path, scenes, motions, speed, opts)
-        return SourceSpec(i, kind, split, _int(f"{path}.count", t["count"], 1, 10**6), scenes,
+        return SourceSpec(i, kind, split, _int(f"{path}.count", t["count"], 1, MAX_CLIPS), scenes,
                           motions, speed, opts, noise=noise)
     if kind == "python":
         _take(t, path, {**common, "factory": True, "count": True, "options": False})
@@ -258,7 +264,7 @@ def _parse_source(i: int, t: dict, base: Path, clip_s: float = 0.0,
         resolve_factory(factory, f"{path}.factory")
         options = t.get("options", {})
         opts = {k: parse_distribution(f"{path}.options.{k}", v, "any") for k, v in options.items()}
-        return SourceSpec(i, kind, split, _int(f"{path}.count", t["count"], 1, 10**6),
+        return SourceSpec(i, kind, split, _int(f"{path}.count", t["count"], 1, MAX_CLIPS),
                           options=opts, factory=factory, noise=noise)
     _take(t, path, {**common, "path": True, "sequences": False, "sequences_file": False,
                     "fps": False, "options": False, "count": False, "per_second": False,
@@ -291,6 +297,7 @@ def _parse_source(i: int, t: dict, base: Path, clip_s: float = 0.0,
                             f"no {key} here: the source's own keys set it (crop = {{size = ...}}, "
                             "start_s)")
     videos = tuple(_video_info(kind, root, seq, fps, f"{path}.sequences") for seq in sequences)
+    _check_video_options(f"{path}.options", kind, root, videos[0], opts, options)
     clips = _parse_clips(path, t, videos, clip_s)
     return SourceSpec(i, kind, split, sum(clips.clips_of(v) for v in videos), options=opts,
                       path=str(root), sequences=sequences, fps=None if fps is None else float(fps),
@@ -328,17 +335,63 @@ def _video_info(kind: str, root: Path, seq: str, fps, path: str) -> VideoInfo:
     return VideoInfo(seq, int(src.n_frames), int(src.height), int(src.width), float(rate))
 
 
+#: Keywords of :class:`~spikesim.scenes.video.VideoScene` that a source's own keys
+#: set (``fps``, ``crop``, ``start_s``; ``resize`` is ``[dataset].size``), or that a
+#: manifest cannot give (``shared_flows``), so never in its ``options``.
+_VIDEO_SET_BY_SOURCE = ("self", "source", "fps", "resize", "crop", "start_s", "stop_s",
+                        "shared_flows")
+
+
+def _check_video_options(path: str, kind: str, root: Path, video: VideoInfo, opts: dict,
+                         raw: dict) -> None:
+    """Refuse, before any work, ``options`` the build's
+    :func:`spikesim.scenes.video` would refuse: unknown keywords, and any value
+    a key can draw (both ends of a range, every choice) that the scene rejects,
+    tried on the source's first video (headers only, nothing decoded)."""
+    import inspect
+
+    from spikesim.errors import SpikeSimError
+    from spikesim.scenes.readers import VideoFileSource, open_frames
+    from spikesim.scenes.video import VideoScene
+
+    known = sorted(set(inspect.signature(VideoScene.__init__).parameters)
+                   - set(_VIDEO_SET_BY_SOURCE))
+    for key in opts:
+        if key not in known:
+            raise bad_value(f"{path}.{key}", raw[key], f"a keyword of spikesim.scenes.video "
+                            f"among {known}")
+    if not opts:
+        return
+    src = open_frames(root, layout={"reds": "reds", "davis": "davis"}.get(kind, "auto"),
+                      sequence=None if kind == "video" else video.name)
+    try:
+        first = {k: d.args[0] for k, d in opts.items()}
+        for key, d in opts.items():
+            values = d.args if d.law in ("choice", "uniform", "loguniform") else d.args[:1]
+            for v in values:
+                try:
+                    VideoScene(src, video.fps, **{**first, key: v})
+                except (SpikeSimError, TypeError, ValueError) as exc:
+                    raise SpikeSimValueError(f"{path}.{key}={v!r} is invalid for video "
+                                             f"{video.name!r}: {exc}") from None
+    finally:
+        if isinstance(src, VideoFileSource):
+            src.close()
+
+
 def _parse_clips(path: str, t: dict, videos: tuple, clip_s: float) -> ClipSpec:
     """Clip keys of a video source, checked against every video of it."""
     if "count" in t and "per_second" in t:
         raise bad_value(f"{path}.per_second", t["per_second"],
                         "no 'count' beside it (one of the two)")
-    count = _int(f"{path}.count", t["count"], 1, 10**6) if "count" in t else None
+    count = _int(f"{path}.count", t["count"], 1, MAX_CLIPS) if "count" in t else None
     per_second = None
     if "per_second" in t:
         v = t["per_second"]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
-            raise bad_value(f"{path}.per_second", v, "a number > 0 (clips per second of video)")
+        if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                or not v > 0):
+            raise bad_value(f"{path}.per_second", v, "a finite number > 0 (clips per second of "
+                            "video)")
         per_second = float(v)
     elif count is None:
         count = 1
@@ -377,6 +430,11 @@ def _check_clips_fit(path: str, c: ClipSpec, v: VideoInfo, clip_s: float) -> Non
     where = (f"video {v.name!r} ({v.n_frames} frames at {v.fps:g} fps, {v.height}x{v.width}; "
              f"each clip lasts {clip_s:.4g} s)")
     latest = v.duration_s - clip_s
+    if c.per_second is not None and c.per_second * v.duration_s > MAX_CLIPS + 0.5:
+        # capped as count is: planning takes time per clip (minutes at 10**7)
+        raise bad_value(f"{path}.per_second", c.per_second,
+                        f"at most {MAX_CLIPS:,} clips a video (as count): "
+                        f"{c.per_second * v.duration_s:,.0f} for {where}")
     if latest < 0:
         raise SpikeSimValueError(
             f"{path}: {where} is shorter than one clip (dataset.window × "
@@ -576,9 +634,13 @@ def _check_variables(variables: dict, used: set[str], origin: str) -> None:
             "check the spelling or drop it")
 
 
-def _substitute(value, variables: dict, origin: str):
+def _substitute(value, variables: dict, origin: str, is_path: bool = False):
+    """``${NAME}`` replaced in every string.  A source ``path`` that starts with a
+    variable whose value is a relative path is resolved against the current
+    directory (where the user typed ``--set`` or set the variable), not against
+    the manifest's folder (a built-in manifest's is inside the package)."""
     if isinstance(value, dict):
-        return {k: _substitute(v, variables, origin) for k, v in value.items()}
+        return {k: _substitute(v, variables, origin, k == "path") for k, v in value.items()}
     if isinstance(value, list):
         return [_substitute(v, variables, origin) for v in value]
     if not isinstance(value, str):
@@ -591,7 +653,10 @@ def _substitute(value, variables: dict, origin: str):
             raise SpikeSimValueError(
                 f"manifest {origin} needs {name}: give --set {name}=VALUE (or set the "
                 f"environment variable {name})")
-        return str(found)
+        found = str(found)
+        if is_path and match.start() == 0 and found:
+            found = str(Path.cwd() / Path(found).expanduser())  # (an absolute one stays)
+        return found
 
     return _VAR.sub(one, value)
 

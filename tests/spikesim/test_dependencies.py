@@ -135,3 +135,61 @@ def test_the_private_check_bites(tmp_path):
     assert [w for _, w in _private_imports(f, "spikejdd.cli")] == [
         "spikesim._validate", "spikesim.io._x", "spikesim.io._compression"]
     assert list(_private_imports(f, "spikesim.io.dat")) == []
+
+
+def _setup_cfg():
+    import configparser
+
+    cfg = configparser.ConfigParser()
+    cfg.read(ROOT / "setup.cfg", encoding="utf-8")
+    return cfg
+
+
+def _lines(value: str) -> list[str]:
+    """The entries of a multi-line setup.cfg value, comment lines left out."""
+    return [s.strip() for s in value.splitlines() if s.strip() and not s.strip().startswith("#")]
+
+
+def test_numba_range_has_an_upper_bound_and_holds_the_installed_numba():
+    """The kernels lean on numba's code generation, so a numba release may break them: the
+    range is closed above, and the numba this suite runs with lies inside it."""
+    import numba
+    from packaging.requirements import Requirement
+
+    requires = _lines(_setup_cfg()["options"]["install_requires"])
+    reqs = {r.name: r for r in map(Requirement, requires)}
+    spec = reqs["numba"].specifier
+    assert any(s.operator in ("<", "<=", "==", "~=") for s in spec), f"numba{spec} is open above"
+    assert any(s.operator in (">", ">=", "==", "~=") for s in spec), f"numba{spec} is open below"
+    assert spec.contains(numba.__version__), f"numba {numba.__version__} is outside numba{spec}"
+
+
+def test_every_shipped_file_is_in_a_declared_package():
+    """Each data file under the packages (tables, weights, built-in manifests) lies in a
+    package that setuptools finds and matches that package's ``package_data`` glob: a file
+    left out installs fine in editable mode and goes missing from a wheel; a folder
+    setuptools cannot place warns on every ``pip install``."""
+    from fnmatch import fnmatch
+
+    from setuptools import find_namespace_packages
+
+    cfg = _setup_cfg()
+    assert cfg["options"]["packages"].strip() == "find_namespace:"
+    find = cfg["options.packages.find"]
+    packages = set(find_namespace_packages(str(ROOT), include=_lines(find["include"]),
+                                           exclude=_lines(find.get("exclude", ""))))
+    assert {"spikesim", "spikesim.tables", "spikejdd.weights"} <= packages
+    assert not [p for p in packages if "__pycache__" in p]
+    package_data = {k: [g.strip() for g in v.split(",")] for k, v in
+                    cfg["options.package_data"].items()}
+    skip = (".py", ".pyc", ".nbi", ".nbc", ".sha256")
+    data = [p for pkg in ("spikesim", "spikejdd") for p in (ROOT / pkg).rglob("*")
+            if p.is_file() and "__pycache__" not in p.parts and not p.name.endswith(skip)]
+    assert data, "no data files found: the check would pass vacuously"
+    missing = []
+    for path in data:
+        package = ".".join(path.parent.relative_to(ROOT).parts)
+        globs = package_data.get(package, [])
+        if package not in packages or not any(fnmatch(path.name, g) for g in globs):
+            missing.append(str(path.relative_to(ROOT)))
+    assert not missing, "not shipped in a wheel: " + ", ".join(missing)
