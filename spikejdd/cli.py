@@ -543,7 +543,7 @@ def _demo(args) -> int:
 
     r = run_demo(args.out, size=args.size, limit=args.limit,
                  methods=_methods(args.methods) or None, device=args.device,
-                 threads=args.threads)
+                 threads=args.threads, say_stages=True)
     print_sequences(r)
     rec = r["reconstruction"]
     if rec:
