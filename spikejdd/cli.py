@@ -141,6 +141,9 @@ def _train_parser(sub) -> None:
                                    "a checkpoint), with a fresh schedule; ignored on resume")
     tr.add_argument("--online", action="store_true",
                     help="simulate every sample in the data loader (no --data needed)")
+    tr.add_argument("--device-sim", action="store_true",
+                    help="with --online: render and simulate each batch on the training device "
+                         "(spikesim's torch backend; no loader processes, no numba)")
     tr.add_argument("--clip", action="append", default=[], dest="clips", metavar="PATH",
                     help="a video file or frame folder some --online samples are cut from "
                          "(repeatable)")
@@ -289,6 +292,8 @@ def _train(args) -> int:
         cfg["progress"] = False
     if args.online:
         cfg["online"] = True
+    if args.device_sim:
+        cfg["device_sim"] = True
     if args.clips:
         cfg["clips"] = list(args.clips)
     if args.channels_last:
@@ -317,6 +322,8 @@ def _train(args) -> int:
         flags["weights"] = "--init"
     if args.clips:
         flags["clips"] = "--clip"
+    if args.device_sim:
+        flags["device_sim"] = "--device-sim"
     try:
         config = TrainConfig.from_dict(cfg)
         config.validate()
@@ -540,7 +547,7 @@ def _demo(args) -> int:
 
     r = run_demo(args.out, size=args.size, limit=args.limit,
                  methods=_methods(args.methods) or None, device=args.device,
-                 threads=args.threads)
+                 threads=args.threads, say_stages=True)
     print_sequences(r)
     rec = r["reconstruction"]
     if rec:

@@ -12,11 +12,12 @@ weights, scoring PSNR/SSIM and time per frame.  Everything lands in
 from __future__ import annotations
 
 import json
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
 
-from spikesim.demo import build_demo, demo_report, preview_report
+from spikesim.demo import Stages, build_demo, demo_report, preview_report
 from spikesim.errors import SpikeSimError
 from spikesim.srgb import linear_to_srgb8
 
@@ -43,24 +44,31 @@ def _default_methods(device: str = "cpu") -> list[str]:
 def run_demo(out_dir: str | Path = "demo_out", size: int | None = None,
              limit: int | None = None, methods: list[str] | None = None,
              progress: bool = True, device: str | None = None,
-             threads: int | None = None) -> dict:
+             threads: int | None = None, say_stages: bool = False) -> dict:
     """Run the demo into ``out_dir``; returns the report data (also in summary.json).
 
     ``device`` and ``threads`` apply to learned methods (SJDD-Net): the torch
     device, and torch threads per process (default 1 on the CPU, see
     :func:`spikejdd.runtime.set_threads`); both are checked before any work.
+    ``say_stages``: say each stage (simulate, preview, reconstruct, report) on
+    stderr as it starts and ends, with its seconds (:class:`spikesim.demo.Stages`).
     """
     from spikejdd.runtime import configure
 
     device, threads = configure(device, threads)
-    out = Path(out_dir)
-    result = build_demo(out, size=size, limit=limit, progress=progress)
     methods = _default_methods(device) if methods is None else list(methods)
-    result["reconstruction"] = _reconstruct(Path(result["data_dir"]), out, methods,
-                                            result["window"], progress, device) \
-        if methods else None
-    (out / "summary.json").write_text(json.dumps(result, indent=1, default=str))
-    (out / "report.md").write_text(_report(result))
+    stages = Stages("spikejdd demo", 4 if methods else 3) if say_stages else None
+    stage = stages or (lambda what: nullcontext())
+    out = Path(out_dir)
+    result = build_demo(out, size=size, limit=limit, progress=progress, stages=stages)
+    result["reconstruction"] = None
+    if methods:
+        with stage(f"reconstructing with {len(methods)} methods ({', '.join(methods)})"):
+            result["reconstruction"] = _reconstruct(Path(result["data_dir"]), out, methods,
+                                                    result["window"], progress, device)
+    with stage("writing report.md and summary.json"):
+        (out / "summary.json").write_text(json.dumps(result, indent=1, default=str))
+        (out / "report.md").write_text(_report(result))
     return result
 
 

@@ -149,8 +149,10 @@ def frames_from_dataset(path, context: int | None = None, per_sequence: int = 1)
 
 
 def frames_from_simulation(scene, sensor, name: str, gt_readouts, context: int = 41,
-                           seed: int = 0, group: dict | None = None) -> list[Frame]:
-    """Simulate ``scene`` just long enough and cut a window around each GT readout."""
+                           seed: int = 0, group: dict | None = None, backend: str = "numba",
+                           device=None) -> list[Frame]:
+    """Simulate ``scene`` just long enough and cut a window around each GT readout
+    (``backend``, ``device``: those of ``spikesim.simulate``)."""
     import spikesim as ss
 
     half = _check_context(context) // 2
@@ -158,7 +160,8 @@ def frames_from_simulation(scene, sensor, name: str, gt_readouts, context: int =
     n = max(gt_readouts) - half + context
     if min(gt_readouts) - half < 0:
         raise bad_value("gt_readouts", gt_readouts, f"readouts >= {half} (half the context)")
-    stream = ss.simulate(scene, sensor, n_readouts=n, seed=seed, gt_readouts=gt_readouts)
+    stream = ss.simulate(scene, sensor, n_readouts=n, seed=seed, gt_readouts=gt_readouts,
+                         backend=backend, device=device)
     spikes = stream.unpack()
     gts = dict(zip(np.asarray(stream.gt_index).tolist(), stream.gt, strict=True))
     noise = f", noise {group['noise']}" if group and "noise" in group else ""

@@ -11,7 +11,9 @@ the reconstruction half: classical pipelines and SJDD-Net, scored and timed.
 
 from __future__ import annotations
 
+import sys
 import time
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +21,44 @@ import numpy as np
 from spikesim.errors import bad_value
 from spikesim.srgb import linear_to_srgb8
 
-__all__ = ["build_demo", "demo_report", "preview_report"]
+__all__ = ["Stages", "build_demo", "demo_report", "preview_report"]
+
+
+class Stages:
+    """Say each stage of a long job as it starts and as it ends, with the seconds it
+    took: ``LABEL: [2/4] WHAT ...`` then ``LABEL: [2/4] WHAT: done in 12.3 s``, one
+    flushed line each on ``stream`` (default stderr, where the progress bars go),
+    terminal or not; a stage cut short by an error says after how long.
+
+    >>> import io
+    >>> out = io.StringIO()
+    >>> stages = Stages("demo", 1, stream=out)
+    >>> with stages("resting"):
+    ...     pass
+    >>> print(out.getvalue().replace("0.0", "T"), end="")
+    demo: [1/1] resting ...
+    demo: [1/1] resting: done in T s
+    """
+
+    def __init__(self, label: str, total: int, stream=None):
+        self.label, self.total, self.stream = label, total, stream
+        self.count = 0
+
+    def say(self, text: str) -> None:
+        print(f"{self.label}: {text}", file=self.stream or sys.stderr, flush=True)
+
+    @contextmanager
+    def __call__(self, what: str):
+        self.count += 1
+        tag = f"[{self.count}/{self.total}] {what}"
+        self.say(f"{tag} ...")
+        t0 = time.perf_counter()
+        try:
+            yield
+        except BaseException:
+            self.say(f"{tag}: stopped after {time.perf_counter() - t0:.1f} s")
+            raise
+        self.say(f"{tag}: done in {time.perf_counter() - t0:.1f} s")
 
 
 def _demo_manifest(size: int | None):
@@ -36,24 +75,41 @@ def _demo_manifest(size: int | None):
 
 
 def build_demo(out_dir: str | Path = "demo_out", size: int | None = None,
-               limit: int | None = None, progress: bool = True) -> dict:
+               limit: int | None = None, progress: bool = True,
+               stages: Stages | None = None) -> dict:
     """Build the demo dataset into ``<out_dir>/demo`` and a preview PNG per sequence.
 
     Returns ``{"size", "window", "data_dir", "sequences", "build_seconds", "built",
-    "reused"}``; a sequence that fails raises ``RuntimeError`` naming it.
+    "reused"}``; a sequence that fails raises ``RuntimeError`` naming it.  With
+    ``stages`` (:class:`Stages`) the two stages, simulating and previewing, are said
+    as they start and end.
     """
     from spikesim.dataset import build_dataset
-    from spikesim.io import open_dataset
-    from spikesim.io.preview import estimate_image, save_image
 
     out = Path(out_dir)
     manifest = _demo_manifest(size)
+    stage = stages or (lambda what: nullcontext())
+    h, w = manifest.size
     t0 = time.perf_counter()
-    summary = build_dataset(manifest, out, workers=1, progress=progress, limit=limit)
+    with stage(f"simulating the demo data set ({h}x{w}"
+               f"{'' if limit is None else f', the first {limit} sequences'}) into {out}"):
+        summary = build_dataset(manifest, out, workers=1, progress=progress, limit=limit)
+        if summary.failed:
+            raise RuntimeError("demo sequences failed: " + "; ".join(
+                f"{r['file']}: {r['error']}" for r in summary.failures))
     build_s = time.perf_counter() - t0
-    if summary.failed:
-        raise RuntimeError("demo sequences failed: " + "; ".join(
-            f"{r['file']}: {r['error']}" for r in summary.failures))
+    with stage("previewing each sequence (TFP over 39 readouts)"):
+        sequences = _previews(out, summary)
+    return {"size": list(manifest.size), "window": manifest.window,
+            "data_dir": str(out / "demo"), "sequences": sequences, "build_seconds": build_s,
+            "built": summary.done, "reused": summary.skipped}
+
+
+def _previews(out: Path, summary) -> list[dict]:
+    """A preview PNG and the table row of every sequence of the built data set."""
+    from spikesim.io import open_dataset
+    from spikesim.io.preview import estimate_image, save_image
+
     data_dir = out / "demo"
     ds = open_dataset(data_dir)
     records = {r["id"]: r for r in summary.records}
@@ -78,9 +134,7 @@ def build_demo(out_dir: str | Path = "demo_out", size: int | None = None,
             "preview": preview.name,
         })
         seq.close()
-    return {"size": list(manifest.size), "window": manifest.window, "data_dir": str(data_dir),
-            "sequences": sequences, "build_seconds": build_s, "built": summary.done,
-            "reused": summary.skipped}
+    return sequences
 
 
 def demo_report(r: dict, title: str = "spikesim demo") -> list[str]:

@@ -39,8 +39,25 @@ from spikesim._validate import check_real, is_real
 from spikesim.errors import bad_value
 
 __all__ = ["PaperNoise", "PhysicalNoise", "noise_from_dict", "FixedPattern", "fixed_pattern",
-           "NO_NOISE_PARAMS"]
+           "NO_NOISE_PARAMS", "ELECTRONS_PER_THRESHOLD_RANGE"]
 
+#: Accepted ``electrons_per_threshold`` (e⁻), the range the event-driven
+#: shot-noise kernel's arithmetic supports with a wide margin (``spikesim._event``):
+#:
+#: * below: a pixel's electrons ``E·t`` (``t`` ≥ 0.05, the threshold-mismatch
+#:   floor of :func:`fixed_pattern`) under 2⁻⁵³ make the modulo reset's
+#:   ``lead = need − ⌈need⌉`` round to −1 and ``⌈lead + E⌉`` to −1, an index
+#:   outside the kernel's shape tables (a segmentation fault, seen at
+#:   ``E`` = 1e-17 and below); and a run's per-readout charge ``λ = q·E·t`` is kept
+#:   on a grid of 2⁻³² e⁻ (``CHARGE_GRID``), which at ``E`` = 1e-3 still holds
+#:   every pixel at or above the default dark current (q ≥ 0.003) to 0.1 %;
+#: * above: the charge of a readout is capped at ``LAMBDA_MAX`` = 2⁶² e⁻
+#:   (``spikesim._poisson``), harmless only while that cap is many thresholds
+#:   (at 1e9 e⁻ and t ≤ 3.5: over 10⁹ thresholds a readout), and the Poisson
+#:   sampler's float64 acceptance test, whose terms grow as ``λ·ln λ``, errs
+#:   by about 2e-6 at λ = 1e9.  At 1e20 the cap left a sensor dark where
+#:   it should fire 0.3 spikes a readout.
+ELECTRONS_PER_THRESHOLD_RANGE = (1e-3, 1e9)
 #: The kernel's noise parameters of an ideal sensor (see ``kernel_params``).
 NO_NOISE_PARAMS = {"paper_sg2": 0.0, "paper_sp2": 0.0, "paper_only": False, "jitter": 0.0,
                    "loss": 0.0}
@@ -108,9 +125,11 @@ class PhysicalNoise(_NoiseBase):
     Parameters
     ----------
     electrons_per_threshold : float
-        Photo-electrons that fill one nominal threshold θ (e⁻).  Sets the
-        photon shot noise: the relative noise of one firing cycle is
-        ``1/sqrt(electrons_per_threshold)``.  Assumption (default 1000 e⁻).
+        Photo-electrons that fill one nominal threshold θ (e⁻), in
+        :data:`ELECTRONS_PER_THRESHOLD_RANGE` (1e-3 to 1e9: what the kernel's
+        arithmetic supports).  Sets the photon shot noise: the relative noise
+        of one firing cycle is ``1/sqrt(electrons_per_threshold)``.
+        Assumption (default 1000 e⁻).
     shot_noise : bool
         Draw the collected electrons of each readout from a Poisson law.
     dark_current_rel : float
@@ -168,8 +187,11 @@ class PhysicalNoise(_NoiseBase):
 
     def __post_init__(self):
         e = self.electrons_per_threshold
-        if not (isinstance(e, (int, float)) and math.isfinite(e) and e > 0):
-            raise bad_value("electrons_per_threshold", e, "a finite number of electrons > 0")
+        lo, hi = ELECTRONS_PER_THRESHOLD_RANGE
+        if not (is_real(e) and math.isfinite(float(e)) and lo <= float(e) <= hi):
+            raise bad_value("electrons_per_threshold", e,
+                            f"a number of electrons in [{lo:g}, {hi:g}] (the range the "
+                            "shot-noise kernel's arithmetic supports)")
         object.__setattr__(self, "electrons_per_threshold", float(e))
         if not isinstance(self.shot_noise, (bool, np.bool_)):
             raise bad_value("shot_noise", self.shot_noise, "True or False")

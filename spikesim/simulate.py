@@ -80,6 +80,9 @@ class SimulationRun:
         # readout times are float64 seconds and indices int64: exact up to 2**53 (as the CLI)
         self.n_readouts = check_int("n_readouts", n_readouts, 1, 2**53, unit="readouts")
         check_key_frames(scene, self.n_readouts / sensor.clock_hz)
+        check_duration = getattr(scene, "check_duration", None)  # optional: a video's end
+        if callable(check_duration):
+            check_duration(self.n_readouts / sensor.clock_hz)
         self.seed = check_int("seed", seed, 0, 2**64 - 1)
         self.clean_twin = check_flag("clean_twin", clean_twin)
         if gt_readouts is None:

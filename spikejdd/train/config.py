@@ -55,6 +55,7 @@ class TrainConfig:
 
     data: str = ""  # HDF5 file/folder; unused with online=True
     online: bool = False  # simulate every sample in the data loader (spikejdd.train.online)
+    device_sim: bool = False  # online samples rendered and simulated on the training device
     clips: list = field(default_factory=list)  # video files/frame folders for online samples
     clip_fraction: float = 0.25  # share of online samples cut from clips (when clips given)
     out: str = "runs/sjdd"
@@ -137,6 +138,8 @@ class TrainConfig:
             out.add("flips")
         else:
             out |= {"epoch_steps", "clips", "clip_fraction"}
+        if self.device_sim:  # no loader processes, no clips
+            out |= {"workers", "clips", "clip_fraction"}
         if not self.clips:
             out.add("clip_fraction")
         if self.validation_kind() == "files":
@@ -177,6 +180,12 @@ class TrainConfig:
             raise bad_value("data", self.data, "None with online (online training simulates "
                             "every sample; --eval-data DIR with --validation files validates "
                             "on files)")
+        if self.device_sim and not self.online:
+            raise bad_value("device_sim", self.device_sim, "False without online (the device "
+                            "simulates online samples: --online --device-sim)")
+        if self.device_sim and self.clips:
+            raise bad_value("clips", self.clips, "none with device_sim (clips are decoded and "
+                            "simulated in loader processes: leave out --device-sim)")
         for c in self.clips:
             if not Path(c).exists():
                 raise bad_value("clips", c, "existing video files or frame folders")

@@ -189,7 +189,8 @@ class Trainer:
             _check_clips(cfg.clips)
             self.train_ds = None
             self.steps_per_epoch = cfg.epoch_steps
-            self.data_desc = {"train": "online", "generator": "spikejdd.train.online",
+            generator = "spikejdd.train.device_sim" if cfg.device_sim else "spikejdd.train.online"
+            self.data_desc = {"train": "online", "generator": generator,
                               "crop": cfg.crop, "steps_per_epoch": cfg.epoch_steps,
                               "clips": list(cfg.clips),
                               "clip_fraction": cfg.clip_fraction if cfg.clips else 0.0}
@@ -246,6 +247,13 @@ class Trainer:
     def batches(self):
         """Training batches from the current state onwards (endless)."""
         cfg, st = self.cfg, self.state
+        if cfg.online and cfg.device_sim:  # rendered and simulated here: no loader processes
+            from spikejdd.train.device_sim import DeviceBatches
+
+            yield from DeviceBatches(cfg.batch_size, cfg.crop, self.mcfg.n_readouts, cfg.seed,
+                                     self.device, start_step=st.step, rank=self.rank,
+                                     world=self.world)
+            return
         if cfg.online:
             from spikejdd.train.online import OnlineSpikeDataset
 
@@ -293,8 +301,10 @@ class Trainer:
             from spikejdd.train.validation import validation_frames
 
             c = self.cfg
+            # device simulation: the sweep too is simulated with torch (no numba kernels)
+            sim = {"backend": "torch", "device": self.device} if c.device_sim else {}
             self._val_frames = validation_frames(c.val_size, c.val_speeds, c.val_levels,
-                                                 context=self.mcfg.n_readouts + 2)
+                                                 context=self.mcfg.n_readouts + 2, **sim)
         return self._val_frames
 
     def validate(self) -> dict:

@@ -57,8 +57,9 @@ def _scene(name: str, picture: str, motion: str, size, speed: float):
 
 
 def validation_frames(size=(48, 64), speeds=(0.0, 150.0, 1500.0, 3000.0), levels=None,
-                      context: int = 41) -> list:
-    """``spikejdd.evaluate.Frame`` objects of the validation sweep (see the module doc)."""
+                      context: int = 41, backend: str = "numba", device=None) -> list:
+    """``spikejdd.evaluate.Frame`` objects of the validation sweep (see the module doc),
+    simulated by ``backend`` on ``device`` (``spikesim.simulate``: the same bits)."""
     import spikesim as ss
     from spikejdd.evaluate import GPN_RANGE, SWEEP_LEVELS, frames_from_simulation
 
@@ -85,6 +86,7 @@ def validation_frames(size=(48, 64), speeds=(0.0, 150.0, 1500.0, 3000.0), levels
                     scene = _scene(name, picture, motion, size, float(speed))
                     frames += frames_from_simulation(
                         scene, sensor, f"{name}-{motion}", [context // 2], context, seed=0,
+                        backend=backend, device=device,
                         group={"set": set_name, "noise": label, "scene": f"{name}-{motion}",
                                "speed_px_s": float(speed), "sigma_g": sg, "sigma_p": sp})
     return frames

@@ -24,12 +24,14 @@ def run(args) -> int:
     import json
     from pathlib import Path
 
-    from spikesim.demo import build_demo, demo_report, preview_report
+    from spikesim.demo import Stages, build_demo, demo_report, preview_report
 
-    r = build_demo(args.out, size=args.size, limit=args.limit)
+    stages = Stages("spikesim demo", 3)  # each stage said on stderr as it starts and ends
+    r = build_demo(args.out, size=args.size, limit=args.limit, stages=stages)
     out = Path(args.out)
-    (out / "summary.json").write_text(json.dumps(r, indent=1, default=str))
-    (out / "report.md").write_text("\n".join(demo_report(r) + preview_report(r)))
+    with stages("writing report.md and summary.json"):
+        (out / "summary.json").write_text(json.dumps(r, indent=1, default=str))
+        (out / "report.md").write_text("\n".join(demo_report(r) + preview_report(r)))
     print_sequences(r)
     print(f"\nwrote {len(r['sequences'])} sequences and {args.out}/report.md; "
           "`spikejdd demo` also reconstructs them")

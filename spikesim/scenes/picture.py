@@ -12,7 +12,7 @@ import numpy as np
 
 from spikesim._validate import check_positive
 from spikesim.scenes.analytic import ProceduralScene, SplineTexture
-from spikesim.scenes.paths import MOTIONS, make_path, peak_speed_per_phase
+from spikesim.scenes.paths import MOTIONS, make_path, peak_speed
 from spikesim.scenes.sources import load_image
 
 __all__ = ["MovingPicture"]
@@ -55,15 +55,16 @@ class MovingPicture(ProceduralScene):
         self.name = image
         self.motion = motion
         self.direction_deg = float(direction_deg)
-        self._path, period = make_path(motion, self.height, self.width, self.direction_deg)
+        self._path, _ = make_path(motion, self.height, self.width, self.direction_deg)
         self._picture = load_image(image, (self.height, self.width))
-        self._texture = SplineTexture(self._picture)
+        # (a still picture is its own radiance: no spline to prefilter)
+        self._texture = None if motion == "static" else SplineTexture(self._picture)
         if motion == "static":
             self.rate = 0.0
             self._set_speed(None)
         else:
             speed = check_positive("speed", speed)
-            self.rate = speed / peak_speed_per_phase(self._path, period, self.height, self.width)
+            self.rate = speed / peak_speed(motion, self.height, self.width, self.direction_deg)
             self._set_speed(speed)
         rows, cols = np.mgrid[0 : self.height, 0 : self.width].astype(np.float64)
         self._grid = np.stack([cols.ravel(), rows.ravel(), np.ones(rows.size)])

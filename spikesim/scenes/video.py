@@ -432,13 +432,8 @@ class VideoScene(Scene):
         start_s, stop_s = check_time(start_s), check_time(stop_s)
         off = self._offset
         last = self.n_frames - 1
-        length_s = (last - off) / self.fps  # scene time of the last frame
-        if stop_s > length_s + 1.0 / self.fps and not self._warned_end:
-            self._warned_end = True
-            warnings.warn(f"the video ends at {length_s:.4g} s ({self.n_frames} frames at "
-                          f"{self.fps:g} fps) and {stop_s:.4g} s are asked for: the rest holds "
-                          "its last frame (ask for fewer readouts, or a longer clip)",
-                          VideoEndWarning, stacklevel=2)
+        if not self._warned_end:  # a caller that did not give the whole length first
+            self._warn_end(stop_s, stacklevel=3)
         i0 = min(max(0, math.floor(start_s * self.fps + off)), last)
         i1 = max(i0, math.ceil(stop_s * self.fps + off))
         pos = []
@@ -454,6 +449,27 @@ class VideoScene(Scene):
         lo = max(0, int(np.searchsorted(t, start_s, side="right")) - 1)
         hi = int(np.searchsorted(t, stop_s, side="left")) + 1
         return t[lo:hi]
+
+    @property
+    def duration_s(self) -> float:
+        """Scene time of the last frame, seconds (the selected range's length)."""
+        return (self.n_frames - 1 - self._offset) / self.fps
+
+    def check_duration(self, duration_s: float) -> None:
+        """Warn (:class:`VideoEndWarning`) when ``duration_s`` seconds of scene time,
+        the whole length a simulation asks for, run more than one frame interval past
+        the last frame (the simulator calls this before its first chunk, so the
+        warning names the length asked for, not the chunk that first went past)."""
+        self._warn_end(check_time(duration_s), stacklevel=4)
+
+    def _warn_end(self, stop_s: float, stacklevel: int) -> None:
+        length_s = self.duration_s
+        if stop_s > length_s + 1.0 / self.fps:
+            self._warned_end = True
+            warnings.warn(f"the video ends at {length_s:.4g} s ({self.n_frames} frames at "
+                          f"{self.fps:g} fps) and {stop_s:.4g} s are asked for: the rest holds "
+                          "its last frame (ask for fewer readouts, or a longer clip)",
+                          VideoEndWarning, stacklevel=stacklevel)
 
     def radiance(self, t: float) -> np.ndarray:
         """Key frame at a key time, linear blend of the neighbouring key frames between."""

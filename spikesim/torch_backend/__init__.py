@@ -43,17 +43,17 @@ def require_torch():
     return torch
 
 
-def TorchRun(*args, **kwargs):  # noqa: N802 - the class of the driver, built after the import
-    """:class:`spikesim.torch_backend._driver.TorchRun` (torch imported on first use)."""
-    require_torch()
-    from spikesim.torch_backend._driver import TorchRun as cls
+def __getattr__(name: str):
+    """``TorchRun`` and ``simulate_batch``, imported with torch on first use (PEP 562),
+    or the one-line error of :func:`require_torch` when torch is missing."""
+    if name == "TorchRun":
+        require_torch()
+        from spikesim.torch_backend._driver import TorchRun
 
-    return cls(*args, **kwargs)
+        return TorchRun
+    if name == "simulate_batch":
+        require_torch()
+        from spikesim.torch_backend.batch import simulate_batch
 
-
-def simulate_batch(*args, **kwargs):
-    """:func:`spikesim.torch_backend.batch.simulate_batch` (torch imported on first use)."""
-    require_torch()
-    from spikesim.torch_backend.batch import simulate_batch as run
-
-    return run(*args, **kwargs)
+        return simulate_batch
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

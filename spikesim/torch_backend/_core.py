@@ -68,14 +68,12 @@ def initial_state(init_keys: torch.Tensor, pixel_keys: torch.Tensor, uniform: bo
     return _rng.mix64(rk[..., None, None] ^ pixel_keys), whole
 
 
-def _segment_rows(sched, t0: int, t1: int):
-    """For readouts ``[t0, t1)`` of a schedule: the rows inside segments (their
-    key frames ``a``, ``b`` and ``φ``) and the rows split into pieces."""
-    a = np.zeros(t1 - t0, np.int64)
-    b = np.zeros(t1 - t0, np.int64)
-    phi = np.zeros(t1 - t0, np.float64)
-    seg = np.zeros(t1 - t0, bool)
-    pieces = []
+def _tile_runs(sched, t0: int, t1: int):
+    """The schedule's runs over readouts ``[t0, t1)``: ``(row0, row1, a, b, φ)`` for
+    the rows inside one segment (key frames ``a``, ``b``; ``φ`` float64 per row,
+    the kernel's ``(n + ½ − t_a)·inv``, in its order), ``(row, p0, p1)`` for a row
+    split into pieces ``[p0, p1)``."""
+    segments, pieces = [], []
     starts, stops = sched.start, sched.stop
     first = int(np.searchsorted(stops, t0, side="right"))
     for r in range(first, len(starts)):
@@ -85,35 +83,30 @@ def _segment_rows(sched, t0: int, t1: int):
         if sched.kind[r] == RUN_PIECES:
             pieces.append((n0 - t0, int(sched.p0[r]), int(sched.p1[r])))
             continue
-        rows = slice(n0 - t0, n1 - t0)
         n = np.arange(n0, n1, dtype=np.int64).astype(np.float64)
-        a[rows], b[rows], seg[rows] = sched.a[r], sched.b[r], True
-        phi[rows] = (n + 0.5 - sched.ta[r]) * sched.inv[r]  # the kernel's φ, in its order
-    return seg, a, b, phi, pieces
+        phi = (n + 0.5 - sched.ta[r]) * sched.inv[r]
+        segments.append((n0 - t0, n1 - t0, int(sched.a[r]), int(sched.b[r]), phi))
+    return segments, pieces
 
 
 def mean_radiance(frames: torch.Tensor, sched, t0: int, t1: int) -> torch.Tensor:
     """Mean radiance (float64, (..., T, H, W)) of readouts ``[t0, t1)`` from the
     chunk's key frames ``frames`` (..., K, H, W) float32 and its schedule
-    (``spikesim.schedule.build_schedule``, readouts ``t0, t1`` inside it)."""
-    seg, a, b, phi, pieces = _segment_rows(sched, t0, t1)
+    (``spikesim.schedule.build_schedule``, readouts ``t0, t1`` inside it):
+    ``I_a + (I_b − I_a)·φ`` inside a segment (``spikesim._kernels._segment_radiance``),
+    the pieces' ``len·(I_a + (I_b − I_a)·φ)`` summed in order from 0 for a readout
+    that holds key times (``_pieces_radiance``)."""
+    segments, pieces = _tile_runs(sched, t0, t1)
     dev = frames.device
-    t = t1 - t0
-    level = torch.empty((*frames.shape[:-3], t, *frames.shape[-2:]), dtype=torch.float64,
-                        device=dev)
-    if seg.any():
-        rows = np.flatnonzero(seg)
-        ia = frames.index_select(-3, torch.from_numpy(a[rows]).to(dev)).to(torch.float64)
-        di = frames.index_select(-3, torch.from_numpy(b[rows]).to(dev)).to(torch.float64) - ia
-        ph = torch.from_numpy(phi[rows]).to(dev).view(-1, 1, 1)
-        vals = ia + di * ph
-        if len(rows) == t:
-            level = vals
-        else:
-            level.index_copy_(-3, torch.from_numpy(rows).to(dev), vals)
+    lead, hw = frames.shape[:-3], frames.shape[-2:]
+    level = torch.empty((*lead, t1 - t0, *hw), dtype=torch.float64, device=dev)
+    for row0, row1, a, b, phi in segments:
+        ia = frames[..., a, :, :].to(torch.float64).unsqueeze(-3)
+        di = frames[..., b, :, :].to(torch.float64).unsqueeze(-3) - ia
+        ph = torch.from_numpy(phi).to(dev).view(-1, 1, 1)
+        torch.add(ia, di * ph, out=level[..., row0:row1, :, :])
     for row, p0, p1 in pieces:
-        acc = torch.zeros((*frames.shape[:-3], *frames.shape[-2:]), dtype=torch.float64,
-                          device=dev)
+        acc = torch.zeros((*lead, *hw), dtype=torch.float64, device=dev)
         for p in range(p0, p1):
             va = frames[..., int(sched.piece_a[p]), :, :].to(torch.float64)
             vb = frames[..., int(sched.piece_b[p]), :, :].to(torch.float64)

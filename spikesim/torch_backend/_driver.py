@@ -110,8 +110,8 @@ class TorchRun(SimulationRun):
         h, w = self.sensor.shape
         grey = self._grey_at(t)
         if grey is not None:  # every filter sees the grey value (``mosaic_grey_into``)
-            return torch.from_numpy(validate_grey(grey, f"scene.grey(t={t:.6g})")).to(
-                self.device)
+            return torch.tensor(validate_grey(grey, f"scene.grey(t={t:.6g})"),
+                                device=self.device)  # (a copy: scenes hand out read-only frames)
         rad = np.asarray(self.scene.radiance(t))
         name = f"scene.radiance(t={t:.6g})"
         if rad.shape != (h, w, 3) or rad.dtype.kind != "f":
@@ -120,7 +120,7 @@ class TorchRun(SimulationRun):
                 raise bad_value(f"{name}.shape", rad.shape, f"({h}, {w}, 3)")
         else:
             validate_radiance(rad, name)  # raises on NaN, inf, negative; values used as given
-        x = torch.from_numpy(np.ascontiguousarray(rad)).to(self.device)
+        x = torch.tensor(rad, device=self.device)
         return mosaic(x.permute(2, 0, 1), chan)
 
     def _ground_truth(self, n0: int, n1: int) -> tuple[np.ndarray, np.ndarray]:

@@ -47,6 +47,82 @@ def _scene_sensor(n=16, m=20):
             ss.Sensor(height=n, width=m))
 
 
+# --- physical noise: electrons_per_threshold within what the kernel supports -------------
+@pytest.mark.parametrize("e", [1e-18, 1e-30, 5e-4, 1e20, 2e9, float("inf"), True])
+def test_electrons_per_threshold_out_of_range_is_refused(e):
+    with pytest.raises(SpikeSimValueError) as info:
+        ss.noise.PhysicalNoise(electrons_per_threshold=e)
+    assert "electrons_per_threshold=" in str(info.value)
+    assert "[0.001, 1e+09]" in str(info.value)
+
+
+def test_electrons_per_threshold_on_the_command_lines(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for argv in (["simulate", "astronaut", "--readouts", "10", "--size", "16x16", "--sensor",
+                  "physical", "--set", "noise.electrons_per_threshold=1e-30", "--out", "x.h5"],
+                 ["analyze", "snr", "--sensor", "physical", "--set",
+                  "noise.electrons_per_threshold=1e-30", "--out", "snr"]):
+        _fails("spikesim", argv, "electrons_per_threshold=1e-30", "[0.001, 1e+09]")
+    (tmp_path / "m.toml").write_text(
+        '[dataset]\nname = "e"\nsize = [16, 16]\nwindow = 20\n\n[sensor]\npreset = "ideal"\n\n'
+        '[[noise]]\nmode = "physical"\n'
+        'electrons_per_threshold = {loguniform = [1e-20, 1000]}\n\n'
+        '[[sources]]\nkind = "procedural"\nscenes = ["astronaut"]\ncount = 1\n')
+    for extra in (["--dry-run"], []):  # refused at load: before any plan, file or temporary
+        _fails("spikesim", ["dataset", "m.toml", "--out", "ds", *extra],
+               "noise[0]: electrons_per_threshold=1e-20", "[0.001, 1e+09]")
+        assert not (tmp_path / "ds").exists()
+
+
+_AT_THE_BOUNDS = """
+import json, sys, warnings
+import numpy as np, spikesim as ss
+warnings.simplefilter("ignore")
+lo, hi = ss.noise.ELECTRONS_PER_THRESHOLD_RANGE
+out = {}
+for reset in ("modulo", "subtract", "zero"):
+    for motion in ("pan", None):
+        scene = (ss.scenes.procedural("astronaut", motion=motion, size=(16, 64)) if motion
+                 else ss.scenes.Static(np.full((16, 64), 0.5, np.float32)))
+        for e in (lo, hi):  # defaults elsewhere: every source of the kernel on
+            sensor = ss.Sensor(height=16, width=64, cfa=None, reset=reset,
+                               noise=ss.noise.PhysicalNoise(electrons_per_threshold=e))
+            ss.simulate(scene, sensor, 200, seed=2)
+        # at the top: shot noise only, E = 1e9 -> the noise-free rate (not a dark sensor)
+        quiet = ss.noise.PhysicalNoise(electrons_per_threshold=hi, dark_current_rel=0.0,
+                                       threshold_mismatch=0.0, prnu=0.0,
+                                       temporal_threshold_noise=0.0, hot_pixel_fraction=0.0)
+        st = ss.simulate(scene, ss.Sensor(height=16, width=64, cfa=None, reset=reset,
+                                          noise=quiet), 400, seed=2, clean_twin=True)
+        out[f"{reset}-{motion}"] = [float(st.unpack().mean()),  # (width 64: no padding)
+                                    float(np.unpackbits(st.clean_packed).mean())]
+# at the bottom: the per-spike sampler against the per-readout one (subtract: bursts)
+bright = ss.scenes.Static(np.full((64, 64), 1.0, np.float32))
+sensor = ss.Sensor(height=64, width=64, cfa=None, reset="subtract",
+                   noise=ss.noise.PhysicalNoise(electrons_per_threshold=lo, dark_current_rel=0.0,
+                                                hot_pixel_fraction=0.0))
+out["low"] = [float(ss.simulate(bright, sensor, 300, seed=s, shot_sampler=k).unpack().mean())
+              for k in ("event", "readout") for s in (1, 2, 3)]
+print(json.dumps(out))
+"""
+
+
+def test_electrons_per_threshold_bounds_run_and_give_the_right_rate():
+    """In a subprocess (a kernel fault must not take the test run down): both ends of
+    the range run for every reset, static and moving; at the top the rate is the
+    noise-free one; at the bottom the two shot-noise samplers agree."""
+    proc = subprocess.run([sys.executable, "-c", _AT_THE_BOUNDS], cwd=REPO, env=cli_env(),
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    low = out.pop("low")
+    assert len(out) == 6
+    for key, (noisy, clean) in out.items():
+        assert clean > 0.1 and abs(noisy - clean) < 0.01 * clean, (key, noisy, clean)
+    event, readout = np.mean(low[:3]), np.mean(low[3:])
+    spread = np.std(low) + 1e-3
+    assert event > 0.01 and abs(event - readout) < 4 * spread, low
+
 # --- tracebacks from the API: absurd readout counts --------------------------------------
 @pytest.mark.filterwarnings("ignore::Warning")  # (the key frames' runaway warning)
 @pytest.mark.parametrize("n", [10**15, 2**70])

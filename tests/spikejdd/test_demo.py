@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 from spikejdd.cli import main
 
@@ -32,7 +33,19 @@ def test_demo_runs_end_to_end_small(tmp_path, capsys):
         assert 15 < rec["summary"][m]["all"]["PSNR[linear]"] < 60
         assert m in report
     assert all((out / p["path"]).exists() for p in rec["panels"])
-    assert "sjdd" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "sjdd" in captured.out
+    # each stage is said on stderr as it starts and as it ends, with its seconds
+    stages = [ln for ln in captured.err.splitlines() if ln.startswith("spikejdd demo: [")]
+    names = ["simulating the demo data set (32x32, the first 3 sequences)",
+             "previewing each sequence", "reconstructing with 5 methods",
+             "writing report.md and summary.json"]
+    assert len(stages) == 2 * len(names), captured.err
+    for k, name in enumerate(names):
+        start, end = stages[2 * k], stages[2 * k + 1]
+        assert start.startswith(f"spikejdd demo: [{k + 1}/4] {name}") and start.endswith(" ...")
+        assert re.fullmatch(rf"spikejdd demo: \[{k + 1}/4\] {re.escape(name)}.*: done in "
+                            r"\d+\.\d s", end), end
     # a second run reuses the files
     assert main(["demo", "--out", str(out), "--size", "32", "--limit", "3",
                  "--methods", "tfp39+bilinear"]) == 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -32,7 +33,30 @@ def test_spikesim_demo_is_the_simulation_half(tmp_path, capsys):
         assert (out / "demo" / f"{item['name']}.h5").exists()
         assert (out / item["preview"]).exists() and item["name"] in report
         assert 0.0 < item["firing_rate"] < 0.6
-    assert "reconstruction" not in summary and "spikejdd demo" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "reconstruction" not in summary and "spikejdd demo" in captured.out
+    # each stage said on stderr as it starts and ends (with its seconds), terminal or not
+    stages = [ln for ln in captured.err.splitlines() if ln.startswith("spikesim demo: [")]
+    assert [ln.split("] ")[0] for ln in stages] == [f"spikesim demo: [{k}/3" for k in
+                                                    (1, 1, 2, 2, 3, 3)], captured.err
+    assert stages[0].startswith("spikesim demo: [1/3] simulating the demo data set (32x32, "
+                                "the first 2 sequences)") and stages[0].endswith(" ...")
+    assert all(re.search(r": done in \d+\.\d s$", ln) for ln in stages[1::2]), stages
+    assert stages[5].startswith("spikesim demo: [3/3] writing report.md and summary.json")
+
+
+def test_stages_say_how_long_a_stage_ran_before_it_failed():
+    import io
+
+    from spikesim.demo import Stages
+
+    out = io.StringIO()
+    stages = Stages("job", 2, stream=out)
+    with pytest.raises(RuntimeError), stages("failing"):
+        raise RuntimeError("boom")
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "job: [1/2] failing ..."
+    assert re.fullmatch(r"job: \[1/2\] failing: stopped after \d+\.\d s", lines[1]), lines
 
 
 @pytest.mark.parametrize("suffix", [".h5", ".dat"])
@@ -98,7 +122,7 @@ def test_cli_warnings_are_one_line_naming_the_command(tmp_path, capsys):
                  "5", "--out", str(tmp_path / "s.h5")]) == 0
     err = capsys.readouterr().err
     lines = [ln for ln in err.splitlines() if "warning" in ln]
-    assert lines and lines[0].startswith("spikesim simulate: warning: resize=(16, 16) squashes")
+    assert lines and lines[0].startswith("spikesim simulate: warning: --size 16x16 squashes")
     assert ".py:" not in err
 
 

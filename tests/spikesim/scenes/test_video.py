@@ -251,3 +251,26 @@ def test_simulating_past_the_video_end_warns_once(tmp_path):
                                              r"0.01 s are asked for") as caught:
         ss.simulate(scene, sensor, 200, gt_readouts=[])
     assert sum(issubclass(w.category, VideoEndWarning) for w in caught) == 1
+
+
+@pytest.mark.parametrize("chunk", [16, 64, None])
+def test_the_video_end_warning_names_the_whole_request_whatever_the_chunks(tmp_path, chunk):
+    """The warning names the length the run asks for (10 ms here), not the end of the
+    first chunk that goes past the video (0.8 ms or 3.2 ms chunks); each run says its own."""
+    import warnings
+
+    import spikesim as ss
+    from spikesim.scenes.video import VideoEndWarning
+
+    _write_folder(tmp_path / "f", [f"{i:05d}.png" for i in range(3)])  # ends at 2 ms
+    scene = sc.video(tmp_path / "f", fps=1000.0)
+    sensor = ss.Sensor(height=32, width=40, cfa=None, clock_hz=20_000.0)
+    with pytest.warns(VideoEndWarning, match=r"and 0.01 s are asked for") as caught:
+        ss.simulate(scene, sensor, 200, gt_readouts=[], chunk_readouts=chunk)
+    assert sum(issubclass(w.category, VideoEndWarning) for w in caught) == 1
+    with pytest.warns(VideoEndWarning, match=r"and 0.02 s are asked for") as caught:
+        list(ss.simulate_chunks(scene, sensor, 400, gt_readouts=[], chunk_readouts=chunk))
+    assert sum(issubclass(w.category, VideoEndWarning) for w in caught) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", VideoEndWarning)
+        scene.check_duration(0.003)  # within one frame interval of the last frame
