@@ -467,7 +467,7 @@ def _noise_rows(model, y, x0, electrons, charge_sd):
 
 @njit(**_inner)
 def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
-                scratch_f, scratch_u, ev, words, paper, event, readout):
+                scratch_f, scratch_u, ev, words, paper, readout):
     """All runs of one chunk (``runs``, a :class:`RunSchedule`) for one 64-pixel
     block and one accumulator set (``model``, a :class:`PixelModel`; its state
     ``frac``, ``whole`` and ``ev`` are the block's contiguous copies).
@@ -482,9 +482,9 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     noise only.  Either path is taken for a run only where every lane's whole part
     is 0 and every charge < 1 θ, where the three reset modes reduce to a
     carry (modulo and subtract: keep the fraction; zero: clear it).
-    ``model.event``: shot noise by the event-driven sampler (``spikesim._event``)
-    with the block's state ``ev`` (4, 64); ``model.loss`` the charge loss at reset
-    (its flags in ``ev[AFTER_RESET]``).
+    ``model.loss``: the charge loss at reset (its flags in ``ev[AFTER_RESET]``);
+    the event sampler's models take :func:`_event_block` instead.  ``paper``,
+    ``readout``: the kernel family (:func:`simulate_chunk`).
     """
     prefer_wide_vectors()  # the per-readout steps' loops of hashes vectorise (1.2–1.3×)
     if x0 < 0 or y < 0:  # never: it proves the indices non-negative, so the lane
@@ -492,11 +492,6 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     gain = scratch_f[10]
     offset = scratch_f[11]
     _charge_rows(model, y, x0, gain, offset)
-    if event is not None and model.event:  # (it reads the electrons)
-        _noise_rows(model, y, x0, scratch_f[12], scratch_f[13])
-        _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev,
-                    words)
-        return
     ia = scratch_f[0]
     di = scratch_f[1]
     ibuf = scratch_f[2]
@@ -579,7 +574,7 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
                     model, zbuf, bbuf, pkeys, shot_work, after, paper, readout))
 
 
-@njit(**_inner)
+@njit(inline="always", **_opts)
 def _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words):
     """:func:`_block_runs` for the event sampler (``model.event``; same
     arguments, the rows set up).  Without charge loss, each run's charge is
@@ -677,10 +672,28 @@ def _run_block(hold, frames, y, x0, width, t_off, runs, model, frac, whole, out,
     """The chunk's runs for one block and accumulator set: :func:`_hold_block`
     where the chunk is one ``hold`` and the model noise-free, else (or where it
     declines) :func:`_block_runs` (same arguments)."""
-    if not (hold and model.fast_ok and _hold_block(frames, y, x0, t_off, runs, model, frac,
-                                                   whole, out, scratch_f[2], scratch_u)):
+    if event is not None and model.event:
+        _event_block(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev,
+                     words)
+    elif not (hold and model.fast_ok and _hold_block(frames, y, x0, t_off, runs, model, frac,
+                                                     whole, out, scratch_f[2], scratch_u)):
         _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out, scratch_f,
-                    scratch_u, ev, words, paper, event, readout)
+                    scratch_u, ev, words, paper, readout)
+
+
+@njit(**_inner)
+def _event_block(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words):
+    """:func:`_block_runs` for the event sampler (``model.event``; same
+    arguments): the block's rows set up, then :func:`_event_runs`.  Called
+    from the entry point directly: a function numba caches carries the
+    machine code of all it calls, so each level of calls between the entry
+    point and the event sampler compiled the sampler once more."""
+    prefer_wide_vectors()  # the per-readout steps' loops of hashes vectorise (1.2–1.3×)
+    if x0 < 0 or y < 0:  # never: it proves the indices non-negative, so the lane
+        return  # loops index without wrap-around checks and vectorise (1.4× per block)
+    _charge_rows(model, y, x0, scratch_f[10], scratch_f[11])
+    _noise_rows(model, y, x0, scratch_f[12], scratch_f[13])  # (it reads the electrons)
+    _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words)
 
 @njit(inline="always", **_opts)
 def _event_run(ev, lam, dlam, electrons, ev_f, ev_u, m, out, t_off, y, n, blk, count, zero,

@@ -69,15 +69,17 @@ def compiled_in_this_process() -> bool:
 def cache_folder(source_folder: Path) -> Path:
     """The folder where numba keeps the cache files of the modules in
     ``source_folder``: its ``__pycache__``, or under a user-set
-    ``NUMBA_CACHE_DIR`` the folder numba names there after it (numba's own
-    rule, ``UserProvidedCacheLocator``)."""
+    ``NUMBA_CACHE_DIR`` the folder numba names there after it: the source
+    folder's name and the SHA-1 of its absolute path, joined by ``_`` (numba's
+    rule in every version from 0.60 on, where its locator class is not public
+    yet; tests/spikesim/test_numba_cache.py checks it against numba's own
+    folder)."""
     user = os.environ.get("NUMBA_CACHE_DIR")
     if not user:
         return source_folder / "__pycache__"
-    from numba.core.caching import UserProvidedCacheLocator
-
-    return Path(user) / UserProvidedCacheLocator.get_suitable_cache_subpath(
-        os.fspath(source_folder / "module.py"))
+    folder = os.path.abspath(os.fspath(source_folder))
+    digest = hashlib.sha1(folder.encode()).hexdigest()
+    return Path(user) / f"{os.path.basename(folder)}_{digest}"
 
 
 def sync_cache(package_dir: Path) -> bool:

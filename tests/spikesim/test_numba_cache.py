@@ -64,10 +64,12 @@ def test_a_user_cache_dir_is_kept_in_step_and_nothing_else_there_is_touched(tmp_
     beside = _cache_files(pkg)
     user = tmp_path / "elsewhere"
     monkeypatch.setenv("NUMBA_CACHE_DIR", os.fspath(user))
-    from numba.core.caching import UserProvidedCacheLocator
+    found = {}
 
     def there(module):  # where numba itself puts a module's cache under the user dir
-        return user / UserProvidedCacheLocator.get_suitable_cache_subpath(os.fspath(module))
+        if module.parent not in found:
+            found[module.parent] = _numba_user_folder(module, user)
+        return found[module.parent]
 
     assert cache_folder(pkg) == there(pkg / "kernels.py")
     assert cache_folder(pkg / "sub") == there(pkg / "sub" / "rng.py")
@@ -111,3 +113,27 @@ def test_a_compiled_kernel_is_told_from_a_cached_one(tmp_path, monkeypatch):
     runs = [subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True,
                            text=True, check=True).stdout.strip() for _ in range(2)]
     assert runs == ["True", "False"]  # compiled (cold cache), then loaded from the cache
+
+
+def _numba_user_folder(module, user):
+    """The folder numba itself makes under ``user`` (``NUMBA_CACHE_DIR``) for the
+    cache of a cached function defined in ``module``'s folder: found by compiling
+    one there in a fresh interpreter, whatever numba's version."""
+    import subprocess
+    import sys
+
+    folder = module.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    probe = folder / "spikesim_cache_probe.py"
+    probe.write_text("from numba import njit\n\n@njit(cache=True)\ndef one():\n    return 1\n")
+    scratch = user.parent / "probe-cache"
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); import spikesim_cache_probe as m; "
+            "assert m.one() == 1")
+    subprocess.run([sys.executable, "-c", code, os.fspath(folder)], check=True,
+                   env=dict(os.environ, NUMBA_CACHE_DIR=os.fspath(scratch)))
+    probe.unlink()
+    (made,) = [p for p in scratch.iterdir() if p.is_dir()]
+    import shutil
+
+    shutil.rmtree(scratch)
+    return user / made.name
