@@ -165,8 +165,10 @@ def train_data_md(res: dict) -> str:
              "(`time.process_time`): the rate one core gives, whatever else shares the "
              "machine; `draw` is `draw_scene` alone, `simulate` the rest of a sample "
              "(`spikesim.simulate` with its key frames and GT, unpacking, the mask).",
-             "`workers_to_feed_M` = loader processes needed so that simulation keeps up with one "
-             "training step of model M on this CPU.", "", f"Machine: {res['machine']}.", "",
+             *(["`workers_to_feed_M` = loader processes needed so that simulation keeps up "
+                "with one training step of model M on this CPU."]
+               if any(k.startswith("workers_") for k in extra) else []),
+             "", f"Machine: {res['machine']}.", "",
              "| crop | samples/s per CPU-second | samples/s (wall) | ms per sample (CPU) | "
              "draw (ms CPU) | simulate (ms CPU) |" + "".join(f" {k} |" for k in extra),
              "|---" * (6 + len(extra)) + "|"]
