@@ -21,11 +21,21 @@ Writes, under ``benchmarks/results/``:
   pipeline of that cell (dB, PSNR linear), with the column means (one view and
   each ``--compare`` method too).
 
+* ``sjdd_held_out.{json,md}`` (``--held-out``, alone) — generalisation: the
+  held-out pictures of :mod:`spikejdd.heldout` (packages that training and
+  validation never read), static, 150, 1500 and 3000 px/s, GN 0/5/10/15 and
+  random GPN (``--quick``: GN 10 only), one 48×64 frame per cell; SJDD-Net
+  (``method="sjdd"``: the shipped default, two views) minus the best of six
+  classical pipelines per cell, per picture, per category and per noise level.
+
 Usage::
 
     python benchmarks/bench_sjdd.py [--weights NAME|PATH] [--compare sjdd@sjdd-lite]
         [--threads 1] [--skip-sweep] [--skip-deform] [--skip-table] [--table-size 64x96]
         [--table-frames 2]
+    python benchmarks/bench_sjdd.py --held-out [--quick] [--held-out-size 48x64]
+        [--weights NAME|PATH] [--compare sjdd@sjdd-lite] [--threads 2]
+        [--out benchmarks/results/sjdd_held_out]
 
 Every result file records the machine as it describes itself, with the load
 average at the start and the end (``benchmarks/machine.py``).
@@ -292,6 +302,124 @@ def summarize(result: dict, methods: list[str], name: str, one_view: str | None 
     return "\n".join(lines) + "\n"
 
 
+def bench_held_out(weights: str, threads: int, size=(48, 64), quick: bool = False,
+                   out: Path | None = None, compare: tuple = ()) -> dict:
+    """The held-out benchmark (see the module doc); writes ``out``.json and ``out``.md.
+    Methods of ``compare`` are scored in the same run (their tables under ``compared``)."""
+    from spikejdd import evaluate
+    from spikejdd.heldout import CLASSICAL as HELD_CLASSICAL
+    from spikejdd.heldout import held_out_frames, held_out_tables
+
+    torch.set_num_threads(threads)
+    out = Path(out) if out else RESULTS / "sjdd_held_out"
+    name = _sjdd_name(weights)
+    levels = ["GN10"] if quick else None
+    t0 = time.perf_counter()
+    frames = held_out_frames(size=size, levels=levels, progress=True)
+    t_sim = time.perf_counter() - t0
+    compare = tuple(m for m in compare if m != name)
+    result = evaluate.run(frames, list(HELD_CLASSICAL) + [name, *compare], repeats=1,
+                          progress=True)
+    tables = held_out_tables(result["rows"], name, HELD_CLASSICAL)
+    compared = {m: held_out_tables(result["rows"], m, HELD_CLASSICAL) for m in compare}
+    for t in compared.values():
+        t.pop("cells")
+    cmd = (f"python benchmarks/bench_sjdd.py --held-out --weights {weights} --threads {threads}"
+           f" --held-out-size {size[0]}x{size[1]} --compare '{','.join(compare)}'"
+           + (" --quick" if quick else ""))
+    res = {"command": cmd, "weights": weights, "method": name, "size": list(size),
+           "levels": levels or [lv[0] for lv in evaluate.SWEEP_LEVELS], "frames": len(frames),
+           "seconds": {"simulate": t_sim, "total": time.perf_counter() - t0},
+           "ms_per_frame": {m: v["all"]["ms_per_frame"] for m, v in result["summary"].items()},
+           "machine": machine.describe(), **tables, "compared": compared}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(res, indent=1))
+    md = held_out_md(res)
+    out.with_suffix(".md").write_text(md)
+    print(md)
+    return res
+
+
+def held_out_md(res: dict) -> str:
+    """Markdown of :func:`bench_held_out`'s result."""
+    from spikejdd.heldout import HELD_OUT
+
+    speeds = [str(s) for s in res["speeds_px_s"]]
+    head = ["static" if float(s) == 0 else f"{float(s):g} px/s" for s in speeds]
+    gn10 = "GN10" in res["levels"]
+    sm = res["summary"]
+    lines = [f"# Held-out benchmark: {res['method']} ({res['weights']}) against the best "
+             "classical pipeline", "",
+             f"`{res['command']}`; {len(res['by_picture'])} pictures from packages that "
+             "training and validation never read (`spikejdd.heldout`), "
+             f"{res['size'][0]}×{res['size'][1]}, one frame per cell (picture × speed × noise "
+             f"level; levels {', '.join(res['levels'])}), PSNR linear (peak 1, clamped). "
+             "Each cell's delta is SJDD-Net minus the best of "
+             f"{', '.join(res['classical'])} in that cell.", "",
+             f"Machine: {res['machine']}. {res['frames']} frames; "
+             f"{res['seconds']['total'] / 60:.1f} min in all.", "",
+             "## Summary", "",
+             f"* mean delta over every cell: **{sm['mean_delta_db']:+.2f} dB**"]
+    if gn10:
+        worst = sm["worst_gn10_static_slow"]
+        lines += [f"* mean delta at GN σ = 10: **{sm['mean_delta_db_gn10']:+.2f} dB** "
+                  "(acceptance: ≥ +1.5 dB; goal ≥ +2 dB)",
+                  f"* smallest delta at GN σ = 10 on a static or slow cell: "
+                  f"{sm['min_delta_db_gn10_static_slow']:+.2f} dB ({worst['picture']}, "
+                  f"{worst['speed_px_s']:g} px/s); pictures at least equal to the best "
+                  "classical pipeline on both: "
+                  f"{len(sm['pictures_at_least_equal_gn10_static_slow'])} of "
+                  f"{len(res['by_picture'])}"]
+    wins = ", ".join(f"{m} {n}" for m, n in sorted(res["wins"].items(), key=lambda x: -x[1]))
+    lines += [f"* best classical pipeline (cells won): {wins}", ""]
+    key = "delta_db_gn10" if gn10 else "delta_db"
+    label = "GN σ = 10" if gn10 else "mean over the levels"
+    lines += [f"## Per category, delta (dB), {label}", "",
+              "| category | pictures | " + " | ".join(head) + " | mean |",
+              "|---" * (len(head) + 3) + "|"]
+    for cat, row in res["by_category"].items():
+        vals = [row[s][key] for s in speeds]
+        lines.append(f"| {cat} | {', '.join(row['pictures'])} | "
+                     + " | ".join(f"{v:+.2f}" for v in vals) + f" | {np.mean(vals):+.2f} |")
+    means = [np.mean([row[s][key] for row in res["by_picture"].values()]) for s in speeds]
+    lines.append("| **all pictures** | | " + " | ".join(f"**{v:+.2f}**" for v in means)
+                 + f" | **{np.mean(means):+.2f}** |")
+    lines += ["", f"## Per picture, delta (dB) and SJDD-Net PSNR (dB), {label}", "",
+              "| picture | categories | " + " | ".join(head) + " |",
+              "|---" * (len(head) + 2) + "|"]
+    psnr_key = "psnr_gn10" if gn10 else "psnr"
+    for pic, row in res["by_picture"].items():
+        lines.append(f"| {pic} | {', '.join(HELD_OUT[pic].categories)} | " + " | ".join(
+            f"{row[s][key]:+.2f} ({row[s][psnr_key]:.2f})" for s in speeds) + " |")
+    means = [np.mean([row[s][key] for row in res["by_picture"].values()]) for s in speeds]
+    lines.append("| **mean** | | " + " | ".join(f"**{m:+.2f}**" for m in means) + " |")
+    lines += ["", "## Per noise level (every picture and speed)", "",
+              "| noise | SJDD-Net PSNR | best classical PSNR | delta |", "|---|---|---|---|"]
+    for n, row in res["by_noise"].items():
+        lines.append(f"| {n} | {row['psnr']:.2f} | {row['classical_psnr']:.2f} | "
+                     f"{row['delta_db']:+.2f} |")
+    for m, t in res.get("compared", {}).items():
+        lines += ["", f"## Compared in the same run: `{m}`, delta per category (dB), {label}",
+                  "", f"Mean delta {t['summary']['mean_delta_db']:+.2f} dB"
+                  + (f", at GN σ = 10 {t['summary']['mean_delta_db_gn10']:+.2f} dB; smallest "
+                     f"static or slow delta at GN σ = 10 "
+                     f"{t['summary']['min_delta_db_gn10_static_slow']:+.2f} dB"
+                     if gn10 else "") + ".", "",
+                  "| category | " + " | ".join(head) + " | mean |",
+                  "|---" * (len(head) + 2) + "|"]
+        for cat, row in t["by_category"].items():
+            vals = [row[s][key] for s in speeds]
+            lines.append(f"| {cat} | " + " | ".join(f"{v:+.2f}" for v in vals)
+                         + f" | {np.mean(vals):+.2f} |")
+        means = [np.mean([row[s][key] for row in t["by_picture"].values()]) for s in speeds]
+        lines.append("| **all pictures** | " + " | ".join(f"**{v:+.2f}**" for v in means)
+                     + f" | **{np.mean(means):+.2f}** |")
+    ms = res["ms_per_frame"]
+    lines += ["", "Time per frame (CPU, ms): " + ", ".join(f"{m} {v:.0f}" for m, v in ms.items())
+              + "."]
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--weights", default=None,
@@ -305,7 +433,20 @@ def main(argv=None) -> int:
     p.add_argument("--skip-table", action="store_true")
     p.add_argument("--table-size", default="64x96", help="HxW of the speed table's frames")
     p.add_argument("--table-frames", type=int, default=2, help="frames per table cell")
+    p.add_argument("--held-out", action="store_true",
+                   help="run the held-out benchmark only (spikejdd.heldout)")
+    p.add_argument("--quick", action="store_true", help="held-out: GN 10 only")
+    p.add_argument("--held-out-size", default="48x64", help="HxW of the held-out frames")
+    p.add_argument("--out", default=None, help="held-out: result stem (default "
+                   "benchmarks/results/sjdd_held_out)")
     args = p.parse_args(argv)
+    try:
+        held_size = tuple(int(v) for v in args.held_out_size.lower().split("x"))
+        if len(held_size) != 2 or min(held_size) < 12:
+            raise ValueError
+    except ValueError:
+        p.error(f"--held-out-size {args.held_out_size!r}: expected HxW with sides >= 12, "
+                "e.g. 48x64")
     try:
         size = tuple(int(v) for v in args.table_size.lower().split("x"))
         if len(size) != 2 or min(size) < 12:
@@ -332,6 +473,18 @@ def main(argv=None) -> int:
         except SpikeSimError as exc:
             p.error(f"--compare {m!r}: {exc}")
     RESULTS.mkdir(parents=True, exist_ok=True)
+    if args.held_out:
+        from spikejdd.heldout import held_out_packages
+        from spikejdd.train.pictures import package_folder
+
+        for pkg in sorted(held_out_packages()):
+            try:
+                package_folder(pkg)
+            except SpikeSimError as exc:
+                p.error(f"--held-out: {exc}")
+        bench_held_out(weights, args.threads, held_size, args.quick,
+                       Path(args.out) if args.out else None, compare)
+        return 0
     if not args.skip_deform:
         bench_deform(args.threads)
     if not args.skip_sweep:

@@ -51,7 +51,7 @@ __all__ = [
 ]
 
 #: HDF5 format versions this loader understands (docs/io.md).
-SUPPORTED_FORMAT_VERSIONS: tuple[int, ...] = (1,)
+SUPPORTED_FORMAT_VERSIONS: tuple[int, ...] = (1, 2)
 
 
 def unpack_spikes(packed: torch.Tensor, width: int, dtype: torch.dtype = torch.float32):

@@ -5,8 +5,9 @@ entry), :mod:`~spikejdd.train.trainer` (:class:`Trainer`: ``step``,
 ``validate``, ``save``, ``resume``), :mod:`~spikejdd.train.state`
 (:class:`TrainState`), :mod:`~spikejdd.train.config` (:class:`TrainConfig` and
 the authors' schedule), :mod:`~spikejdd.train.online` (simulation inside the
-data loader), :mod:`~spikejdd.train.scenes` and
-:mod:`~spikejdd.train.pictures` (what the model trains on),
+data loader), :mod:`~spikejdd.train.scenes`,
+:mod:`~spikejdd.train.pictures` and :mod:`~spikejdd.train.content` (what the
+model trains on: pictures, dead leaves, textures, exposure),
 :mod:`~spikejdd.train.validation` (the Table-1-shaped validation sweep and
 each chunk's benchmark row), :mod:`~spikejdd.train.synthesis` (a fixed set
 on disk), :mod:`~spikejdd.train.workers` (loader workers that die with the

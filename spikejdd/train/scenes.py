@@ -2,17 +2,21 @@
 
 :func:`draw_scene` returns a ``spikesim`` procedural scene (exact radiance at
 any time) and its description.  The distribution (issue: "training on what it
-will see"):
+will see", and natural statistics for content it never saw):
 
-* **content** — crops at several scales of full-resolution pictures
-  (:mod:`spikejdd.train.pictures`, training pictures only; scale ``2^U(-2, 0)``
-  of the picture, so a 32-pixel crop shows 32–128 picture pixels) or
-  procedural textures (value noise in octaves, gratings, rotated checkers);
-  grey pictures get a random colour mix, every picture a random white balance
-  and exposure ``U(0.4, 1)``;
-* **motion** — camera paths over that content (pan, rotation, zoom, shake,
-  homography; ``spikesim.scenes.paths``) or object motion over it: layered
-  sprites, a fan, a textured disk (``spikesim.scenes.layered``);
+* **content** (:data:`CONTENT_MIX`) — half crops at several scales of
+  full-resolution pictures (:mod:`spikejdd.train.pictures`, training pictures
+  only; scale ``2^U(-2, 0)`` of the picture, so a 32-pixel crop shows 32–128
+  picture pixels), 30 % dead-leaves images (occluding shapes with power-law
+  sizes and the training pictures' colours) and 20 % procedural textures
+  (value noise, sine gratings, checkers, fine square-wave stripes, zone
+  plates); all three through :func:`spikejdd.train.content.finish`: a colour
+  mix for grey content, saturation, white balance and an exposure up to
+  saturation (:mod:`spikejdd.train.content`);
+* **motion** (:data:`SCENE_KINDS`) — camera paths over that content (pan,
+  rotation, zoom, shake, homography; ``spikesim.scenes.paths``) or object
+  motion over it: layered sprites, a fan, a textured disk
+  (``spikesim.scenes.layered``);
 * **speed** — :data:`SPEED_BINS`: 20 % static, 20 % slow (at most one pixel
   per 39-readout window at 20 kHz, i.e. ≤ 513 px/s), 60 % fast, log-uniform
   from 513 to 4000 px/s.
@@ -24,15 +28,16 @@ import math
 
 import numpy as np
 
+from spikejdd.train.content import dead_leaves, finish, procedural_texture
 from spikesim.errors import bad_value
 from spikesim.scenes.analytic import ProceduralScene, SplineTexture
 from spikesim.scenes.layered import RotatingDisk, Sprites
-from spikesim.scenes.paths import make_path, peak_speed_per_phase
+from spikesim.scenes.paths import make_path, peak_speed
 from spikesim.scenes.picture import MovingPicture
 
-__all__ = ["draw_scene", "draw_speed", "content_crop", "procedural_texture", "SPEED_BINS",
-           "SLOW_PX_S", "CAMERA_MOTIONS", "SCENE_KINDS", "ArrayPicture", "ArraySprites",
-           "ArraySpinner"]
+__all__ = ["draw_scene", "draw_speed", "draw_content", "content_crop", "procedural_texture",
+           "SPEED_BINS", "SLOW_PX_S", "CAMERA_MOTIONS", "SCENE_KINDS", "CONTENT_MIX",
+           "ArrayPicture", "ArraySprites", "ArraySpinner"]
 
 #: Readout clock (Hz) and window (readouts) of the training/evaluation sensor.
 CLOCK_HZ, WINDOW = 20_000.0, 39
@@ -43,9 +48,13 @@ SPEED_BINS: tuple[tuple[str, float, tuple[float, float]], ...] = (
     ("static", 0.2, (0.0, 0.0)), ("slow", 0.2, (0.0, SLOW_PX_S)),
     ("fast", 0.6, (SLOW_PX_S, 4000.0)))
 CAMERA_MOTIONS = ("pan", "rotation", "zoom", "shake", "homography")
-#: (kind, probability).
+#: (content, probability) of whatever a scene shows (its picture, background, sprites, disk).
+CONTENT_MIX: tuple[tuple[str, float], ...] = (
+    ("picture", 0.5), ("dead-leaves", 0.3), ("texture", 0.2))
+#: (kind, probability): ``camera`` moves content of :data:`CONTENT_MIX` along a camera path;
+#: the others move objects over it.
 SCENE_KINDS: tuple[tuple[str, float], ...] = (
-    ("picture", 0.45), ("texture", 0.15), ("sprites", 0.2), ("fan", 0.1), ("disk", 0.1))
+    ("camera", 0.6), ("sprites", 0.2), ("fan", 0.1), ("disk", 0.1))
 #: Speed given to object scenes that stand still (their classes need speed > 0), px/s.
 _STILL = 1e-6
 
@@ -62,18 +71,9 @@ def draw_speed(rng: np.random.Generator) -> tuple[str, float]:
     return "fast", float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
 
-def _colourise(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    img = np.asarray(img, np.float32)
-    if np.ptp(img - img.mean(axis=2, keepdims=True)) < 1e-3:  # grey: give it colour
-        mix = np.eye(3) * rng.uniform(0.5, 1.0, 3) + rng.uniform(0.0, 0.35, (3, 3))
-        img = img @ mix.T.astype(np.float32)
-    img = img * rng.uniform(0.7, 1.0, 3).astype(np.float32)
-    img = img / max(float(np.percentile(img, 99.5)), 1e-6) * float(rng.uniform(0.4, 1.0))
-    return np.clip(img, 0.0, 1.0).astype(np.float32)
-
-
 def content_crop(name: str, size: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
-    """A random crop of picture ``name`` at scale ``2^U(-2, 0)``, resized to ``size`` (linear)."""
+    """A random crop of picture ``name`` at scale ``2^U(-2, 0)``, resized to ``size`` (linear),
+    through :func:`spikejdd.train.content.finish`."""
     import cv2
 
     from spikejdd.train.pictures import load_picture
@@ -90,35 +90,7 @@ def content_crop(name: str, size: tuple[int, int], rng: np.random.Generator) -> 
     out = cv2.resize(crop, (w, h), interpolation=interp)
     if rng.integers(2):
         out = out[:, ::-1]
-    return _colourise(np.clip(out, 0.0, None), rng)
-
-
-def procedural_texture(size: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
-    """(H, W, 3) linear texture: value-noise octaves, a grating, or a rotated checker."""
-    import cv2
-
-    h, w = size
-    kind = int(rng.integers(3))
-    rows, cols = np.mgrid[0:h, 0:w].astype(np.float32)
-    if kind == 0:  # value noise, 4 octaves, coloured per octave
-        out = np.zeros((h, w, 3), np.float32)
-        for octave in range(4):
-            cells = 2 ** (octave + 1)
-            grid = rng.random((cells + 1, cells + 1, 3)).astype(np.float32)
-            out += cv2.resize(grid, (w, h), interpolation=cv2.INTER_CUBIC) * 0.5 ** octave
-    else:
-        theta = rng.uniform(0, np.pi)
-        u = cols * np.cos(theta) + rows * np.sin(theta)
-        v = -cols * np.sin(theta) + rows * np.cos(theta)
-        period = rng.uniform(3.0, max(4.0, min(h, w) / 2))
-        if kind == 1:
-            t = 0.5 + 0.5 * np.sin(2 * np.pi * u / period)
-        else:
-            t = ((np.floor(u / period) + np.floor(v / period)) % 2).astype(np.float32)
-        a, b = rng.random(3).astype(np.float32), rng.random(3).astype(np.float32)
-        out = t[..., None] * a + (1 - t[..., None]) * b
-    out = out - out.min()
-    return _colourise(out / max(float(out.max()), 1e-6), rng)
+    return finish(np.clip(out, 0.0, None), rng)
 
 
 class ArrayPicture(MovingPicture):
@@ -128,14 +100,15 @@ class ArrayPicture(MovingPicture):
         h, w = image.shape[:2]
         ProceduralScene.__init__(self, (h, w), exposure=1.0, max_px=1.0)
         self.name, self.motion, self.direction_deg = "array", motion, float(direction_deg)
-        self._path, period = make_path(motion, h, w, self.direction_deg)
+        self._path, _ = make_path(motion, h, w, self.direction_deg)
         self._picture = np.asarray(image, np.float32)
-        self._texture = SplineTexture(self._picture)
+        # (a still picture is its own radiance: no spline to prefilter)
+        self._texture = None if motion == "static" else SplineTexture(self._picture)
         if motion == "static":
             self.rate = 0.0
             self._set_speed(None)
         else:
-            self.rate = speed / peak_speed_per_phase(self._path, period, h, w)
+            self.rate = speed / peak_speed(motion, h, w, self.direction_deg)
             self._set_speed(speed)
         r, c = np.mgrid[0:h, 0:w].astype(np.float64)
         self._grid = np.stack([c.ravel(), r.ravel(), np.ones(r.size)])
@@ -180,11 +153,18 @@ class ArraySpinner(RotatingDisk):
         self._build(speed, background, texture, blade_rgb)
 
 
-def _content(rng, size, pictures) -> tuple[np.ndarray, str]:
-    if rng.random() < 0.75:
+def draw_content(rng: np.random.Generator, size: tuple[int, int],
+                 pictures: tuple[str, ...]) -> tuple[np.ndarray, str]:
+    """(H, W, 3) linear content of :data:`CONTENT_MIX` and its name (a picture's name,
+    ``"dead-leaves"`` or ``"texture"``)."""
+    kinds = [k for k, _ in CONTENT_MIX]
+    kind = kinds[int(rng.choice(len(kinds), p=[p for _, p in CONTENT_MIX]))]
+    if kind == "picture":
         name = str(pictures[int(rng.integers(len(pictures)))])
         return content_crop(name, size, rng), name
-    return procedural_texture(size, rng), "texture"
+    if kind == "dead-leaves":
+        return finish(dead_leaves(size, rng), rng), kind
+    return procedural_texture(size, rng), kind
 
 
 def draw_scene(rng: np.random.Generator, size: tuple[int, int],
@@ -196,29 +176,25 @@ def draw_scene(rng: np.random.Generator, size: tuple[int, int],
     kinds = [k for k, _ in SCENE_KINDS]
     kind = kinds[int(rng.choice(len(kinds), p=[p for _, p in SCENE_KINDS]))]
     speed_bin, speed = draw_speed(rng)
-    if kind in ("picture", "texture"):
-        if kind == "picture":
-            name = str(pictures[int(rng.integers(len(pictures)))])
-            img = content_crop(name, size, rng)
-        else:
-            img, name = procedural_texture(size, rng), "texture"
+    if kind == "camera":
+        img, name = draw_content(rng, size, pictures)
         motion = "static" if speed == 0 else str(rng.choice(CAMERA_MOTIONS))
         direction = float(rng.uniform(0.0, 360.0))
         scene = ArrayPicture(img, motion, speed, direction)
         content = [name]
     else:
-        bg, bg_name = _content(rng, size, pictures)
+        bg, bg_name = draw_content(rng, size, pictures)
         move = speed if speed > 0 else _STILL
         if kind == "sprites":
             n = int(rng.integers(1, 5))
             radius_frac = float(rng.uniform(0.12, 0.3))
             side = int(np.ceil(2 * radius_frac * min(size))) + 3
-            tex = [_content(rng, (side, side), pictures) for _ in range(n)]
+            tex = [draw_content(rng, (side, side), pictures) for _ in range(n)]
             scene = ArraySprites(bg, [t[0] for t in tex], move, radius_frac,
                                  int(rng.integers(2**31)))
             content = [bg_name] + [t[1] for t in tex]
         else:
-            tex, tex_name = _content(rng, size, pictures) if kind == "disk" else (None, None)
+            tex, tex_name = draw_content(rng, size, pictures) if kind == "disk" else (None, None)
             scene = ArraySpinner(bg, kind, move, blades=int(rng.integers(2, 7)), texture=tex,
                                  blade_rgb=tuple(rng.uniform(0.2, 1.0, 3)))
             content = [bg_name] + ([tex_name] if tex_name else [])

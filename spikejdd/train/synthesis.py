@@ -1,10 +1,10 @@
 """A fixed procedural training set on disk: :func:`synthesize` (``spikejdd train --synthesize N``).
 
 Each sequence is one scene of :func:`spikejdd.train.scenes.draw_scene` (the
-distribution the in-loader simulation uses: pictures and textures, camera and
-object motion, static to 4000 px/s) simulated with ``spikesim.simulate`` and
-written with ``spikesim.io.write_h5``: RGGB, 20 kHz, full_scale_rate 0.6,
-modulo reset; GT every ``gt_every`` readouts wherever a ``window``-readout
+distribution the in-loader simulation uses: pictures, dead leaves and
+textures, camera and object motion, static to 4000 px/s) simulated with
+``spikesim.simulate`` and written with ``spikesim.io.write_h5``: RGGB, 20 kHz,
+full_scale_rate 0.6, modulo reset; GT every ``gt_every`` readouts wherever a ``window``-readout
 window fits.  Even sequences get Gaussian noise σ ~ U(0, 15) DN, odd ones
 Gaussian–Poisson noise with the evaluation's random-GPN ranges
 (``spikejdd.evaluate.GPN_RANGE``).  For training, prefer ``--online``: a file
@@ -34,7 +34,7 @@ def synthesize(out_dir, n_sequences: int = 96, sizes=((64, 96), (96, 128)),
     import spikesim as ss
     from spikejdd.evaluate import GPN_RANGE
     from spikejdd.train.pictures import TEST_PICTURES, TRAIN_PICTURES
-    from spikejdd.train.scenes import CAMERA_MOTIONS, SPEED_BINS, draw_scene
+    from spikejdd.train.scenes import CAMERA_MOTIONS, CONTENT_MIX, SPEED_BINS, draw_scene
 
     if isinstance(n_sequences, bool) or not isinstance(n_sequences, int) or n_sequences < 1:
         raise bad_value("n_sequences", n_sequences, "an integer >= 1")
@@ -66,6 +66,7 @@ def synthesize(out_dir, n_sequences: int = 96, sizes=((64, 96), (96, 128)),
             "sensor": "RGGB, 20 kHz, full_scale_rate 0.6, modulo reset, paper noise",
             "noise": f"GN sigma~U(0,15) (even sequences) / GPN {GPN_RANGE} (odd)",
             "pictures": list(TRAIN_PICTURES), "excluded_test_pictures": list(TEST_PICTURES),
+            "content_mix": [list(c) for c in CONTENT_MIX],
             "motions": list(CAMERA_MOTIONS) + ["sprites", "fan", "disk"],
             "speed_bins": [list(b) for b in SPEED_BINS], "sequences": seqs}
     (out / "synth.json").write_text(json.dumps(info, indent=1))

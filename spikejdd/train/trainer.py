@@ -321,12 +321,17 @@ class Trainer:
         """The chunk's benchmark row (sweep validation only): sjdd minus best classical, dB."""
         if self.cfg.validation_kind() != "sweep" or not self.cfg.bench_methods:
             return None
-        from spikejdd.train.validation import bench_row, classical_scores, validate_model
+        from spikejdd.train.validation import (
+            bench_row,
+            classical_scores,
+            validate_model,
+            validation_pictures,
+        )
 
         cache = self.out / "val_classical.json"
         key = json.dumps({"size": list(self.cfg.val_size), "speeds": list(self.cfg.val_speeds),
                           "levels": self.cfg.val_levels, "methods": self.cfg.bench_methods,
-                          "window": self.mcfg.n_readouts})
+                          "window": self.mcfg.n_readouts, "pictures": validation_pictures()})
         classical = None
         if cache.exists():
             blob = json.loads(cache.read_text())

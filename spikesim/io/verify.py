@@ -1,7 +1,9 @@
 """Read every byte of spike files and report damage (``spikesim verify PATH``).
 
 Opening a file checks its header; reading it checks each chunk against its
-Fletcher-32 checksum (files written since checksums were added) and each
+Fletcher-32 checksum (files written since checksums were added), each chunk
+of a format-version-2 file against its CRC-32 (:mod:`spikesim.io.h5.sums`:
+Fletcher-32 cannot tell a 16-bit word 0x0000 from 0xFFFF) and each
 ground-truth value for NaN and infinity.  :func:`verify` does all of it for a
 file or, recursively, for a folder, and also lists the temporary files that
 killed writers left behind.  PKU ``.dat`` files carry no checksum: only their
@@ -91,6 +93,7 @@ def dataset_advice(path: Path) -> str | None:
 
 def _verify_h5(path: Path) -> dict:
     from spikesim.io.h5 import open_h5
+    from spikesim.io.h5.format import CRC_VERSION
 
     report = _report(path, "h5")
     try:
@@ -102,6 +105,15 @@ def _verify_h5(path: Path) -> dict:
                 report["notes"].append(
                     f"no checksums on {unchecked} (written by an older spikesim): damage inside "
                     "compressed chunks may go unnoticed")
+            report["format_version"] = seq.format_version
+            report["checksums"] = ("crc32+fletcher32" if seq.format_version >= CRC_VERSION
+                                   else "fletcher32")
+            if seq.format_version < CRC_VERSION and not unchecked:
+                report["notes"].append(
+                    f"format version {seq.format_version}: chunks checked by Fletcher-32 only, "
+                    "which cannot tell a 16-bit word 0x0000 from 0xFFFF (saturated spikes read "
+                    "back as zeros pass); a copy made now (spikesim convert FILE COPY.h5) "
+                    "carries CRC-32 chunk checksums")
             for clean in (False, True) if seq.has_clean else (False,):
                 for t in range(0, seq.n_readouts, BLOCK_READOUTS):
                     seq.read_window(t, min(BLOCK_READOUTS, seq.n_readouts - t), packed=True,

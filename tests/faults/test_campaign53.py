@@ -233,3 +233,97 @@ def test_relative_set_path_is_from_the_current_directory(tmp_path, monkeypatch):
     m = load_manifest(folder / "m.toml", {"CLIPS": str(tmp_path / "data")})  # absolute: as is
     assert m.sources[0].path == str(tmp_path / "data" / "clip")
 
+
+# --- checksum blind spot: 16-bit words 0x0000 <-> 0xFFFF ---------------------------------
+def _saturated_file(path, version2=True):
+    """An uncompressed file (stored bytes = data) whose first spike chunks are all 1s and
+    whose ground truth is 1.0 (float32 0x3F800000: a 0x0000 low word)."""
+    import h5py
+
+    from spikesim.io.h5.format import attrs_digest
+    from spikesim.io.h5.writer import H5Writer
+
+    t, h, w = 70, 12, 40
+    packed = np.full((t, h, w // 8), 0xFF, np.uint8)
+    packed[40:] = np.random.default_rng(0).integers(0, 256, (t - 40, h, w // 8), np.uint8)
+    meta = {"height": h, "width": w, "cfa": "RGGB", "clock_hz": 20000.0}
+    with H5Writer(path, meta, compression="none", clean=True) as wr:
+        for t0 in range(0, t, 25):  # appends that do not fall on chunk boundaries
+            wr.append(packed[t0:t0 + 25], packed[t0:t0 + 25])
+        wr.add_gt(np.ones((2, h, w, 3), np.float32), [10, 60])
+    if not version2:  # as spikesim wrote it before the chunk CRCs
+        with h5py.File(path, "r+") as f:
+            for name in ("spikes", "clean_spikes", "gt", "gt_index"):
+                del f[f"{name}_crc32"]
+            del f.attrs["chunk_checksum"]
+            f.attrs["format_version"] = 1
+            f.attrs["attrs_sha256"] = attrs_digest(f.attrs)
+    return packed
+
+
+def _swap_word(src, dst, dataset, chunk=0, at=64, old=b"\xff\xff", new=b"\x00\x00"):
+    """Copy ``src`` to ``dst`` with one 16-bit word of a stored chunk swapped; a
+    Fletcher-32 blind spot (the chunk's stored checksum still matches)."""
+    import h5py
+
+    with h5py.File(src, "r") as f:
+        info = f[dataset].id.get_chunk_info(chunk)
+    data = bytearray(src.read_bytes())
+    pos = info.byte_offset + at
+    assert bytes(data[pos:pos + 2]) == old
+    data[pos:pos + 2] = new
+    dst.write_bytes(bytes(data))
+    return dst
+
+
+@pytest.mark.parametrize("dataset,old,new", [
+    ("spikes", b"\xff\xff", b"\x00\x00"), ("clean_spikes", b"\xff\xff", b"\x00\x00"),
+    ("gt", b"\x00\x00", b"\xff\xff")])
+def test_swapped_words_are_damage(tmp_path, monkeypatch, dataset, old, new):
+    from spikesim.io import open_h5, verify_file
+
+    monkeypatch.chdir(tmp_path)
+    src = tmp_path / "sat.h5"
+    packed = _saturated_file(src)
+    with open_h5(src) as seq:  # the intact file reads back exactly
+        np.testing.assert_array_equal(seq.read_packed(), packed)
+        np.testing.assert_array_equal(seq.read_all_gt(), 1.0)
+    assert verify_file(src)["ok"] and verify_file(src)["checksums"] == "crc32+fletcher32"
+    bad = _swap_word(src, tmp_path / "bad.h5", dataset, old=old, new=new)
+    report = verify_file(bad)
+    assert report["status"] == "damaged", report
+    assert f"damaged data in its {dataset} (chunk 0, 0, 0" in report["problems"][0], report
+    code, err, out = _main("spikesim", ["verify", bad])
+    err += out
+    assert code == 1 and "DAMAGED" in err and "1 damaged" in err and "CRC-32" in err, err
+    _fails("spikesim", ["convert", bad, "copy.h5"], "bad.h5", dataset, "CRC-32")
+    assert not [p.name for p in tmp_path.iterdir() if "copy" in p.name]
+    with open_h5(bad) as seq, pytest.raises(ss.errors.SpikeSimFormatError, match="CRC-32"):
+        if dataset == "gt":
+            seq.read_gt(0, crop=(2, 3, 4, 5))  # a window touching the chunk: checked too
+        else:
+            seq.read_window(3, 4, crop=(1, 2, 3, 4), clean=dataset == "clean_spikes")
+
+
+def test_version_1_files_still_read_and_verify_says_fletcher_only(tmp_path, monkeypatch):
+    from spikesim.io import open_h5, verify_file
+
+    monkeypatch.chdir(tmp_path)
+    src = tmp_path / "v1.h5"
+    packed = _saturated_file(src, version2=False)
+    report = verify_file(src)
+    assert report["ok"] and report["format_version"] == 1 and report["checksums"] == "fletcher32"
+    assert any("Fletcher-32 only" in n and "0xFFFF" in n for n in report["notes"]), report
+    code, err, out = _main("spikesim", ["verify", src])
+    assert code == 0 and "Fletcher-32 only" in err + out, err + out
+    with open_h5(src) as seq:
+        np.testing.assert_array_equal(seq.read_packed(), packed)
+    # the blind spot itself: a version-1 file cannot see the swap (why version 2 exists)
+    blind = _swap_word(src, tmp_path / "blind.h5", "spikes")
+    assert verify_file(blind)["ok"]
+    # a copy carries the chunk CRCs
+    code, err, _ = _main("spikesim", ["convert", src, "v2.h5"])
+    assert code == 0, err
+    assert verify_file(tmp_path / "v2.h5")["checksums"] == "crc32+fletcher32"
+    with open_h5(tmp_path / "v2.h5") as seq:
+        np.testing.assert_array_equal(seq.read_packed(), packed)

@@ -1,4 +1,4 @@
-"""spikesim HDF5 files, format version 1: the layout, its constants and its checks.
+"""spikesim HDF5 files, format version 2: the layout, its constants and its checks.
 
 One sequence per file, everything at the root:
 
@@ -9,15 +9,23 @@ name               shape / type             meaning
 ``clean_spikes``   same, optional           the noise-free twin (same seed)
 ``gt``             (K, H, W, 3) float32     linear RGB ground truth, 0..1
 ``gt_index``       (K,) int64               readout index of each ``gt`` frame
+``<name>_crc32``   chunk grid, uint32       CRC-32 of each chunk of ``<name>``
+                                            (the four above; version 2)
 =================  =======================  ======================================
+
+Every dataset carries HDF5's Fletcher-32 filter; version 2 adds the chunk
+CRCs (:mod:`spikesim.io.h5.sums`), which also catch what Fletcher-32 cannot
+(a 16-bit word 0x0000 read as 0xFFFF or the reverse).  Version-1 files (no
+``*_crc32``) are still read, with Fletcher-32 only.
 
 Root attributes: ``format="spikesim"``, ``format_version``,
 ``spikesim_version``, ``versions`` (JSON: spikesim, h5py, HDF5, NumPy),
 ``height``, ``width``, ``cfa`` (``"mono"`` for a monochrome sensor),
 ``clock_hz``, ``bitorder="little"``, ``n_readouts``, ``start_readout``,
 ``seed`` (when known), ``sensor``/``noise``/``scene`` (JSON of the full
-configuration), ``meta`` (JSON of the whole metadata dict) and
-``attrs_sha256`` (a checksum of all the others).  :func:`header_of` checks an
+configuration), ``meta`` (JSON of the whole metadata dict),
+``chunk_checksum="crc32"`` (version 2) and ``attrs_sha256`` (a checksum of
+all the others).  :func:`header_of` checks an
 open file against all of this; the writer is :mod:`spikesim.io.h5.writer`,
 the lazy reader :mod:`spikesim.io.h5.reader`.
 """
@@ -33,12 +41,15 @@ import numpy as np
 
 from spikesim._version import __version__
 from spikesim.errors import SpikeSimFormatError
+from spikesim.io.h5.sums import CHECKED, ChunkCheck, chunk_grid, sums_name
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "DIGEST_ATTR", "spike_chunks", "header_of",
-           "attrs_digest", "dumps", "versions", "attr_text", "check_dataset"]
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "CRC_VERSION", "DIGEST_ATTR", "spike_chunks",
+           "header_of", "attrs_digest", "dumps", "versions", "attr_text", "check_dataset"]
 
 FORMAT_NAME = "spikesim"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: The first format version whose datasets carry chunk CRCs (``<name>_crc32``).
+CRC_VERSION = 2
 
 #: Chunk extent along (readouts, rows, packed bytes).  A 39-40 readout window
 #: of a 64-256 px crop touches 2 x 1-3 x 1-3 chunks of 32 x 128 x 16 bytes
@@ -123,7 +134,7 @@ def attr_text(value) -> str:
 
 def check_dataset(f: h5py.File, path: Path, name: str, dtype, shape_tail: tuple) -> h5py.Dataset:
     if name not in f or not isinstance(f[name], h5py.Dataset):
-        raise SpikeSimFormatError(f"{str(path)!r}: dataset {name!r} is missing (format version 1)")
+        raise SpikeSimFormatError(f"{str(path)!r}: dataset {name!r} is missing")
     ds = f[name]
     if ds.dtype != dtype or ds.shape[1:] != shape_tail or ds.ndim != 1 + len(shape_tail):
         raise SpikeSimFormatError(
@@ -220,6 +231,10 @@ def header_of(f: h5py.File, path: Path) -> dict:
                 f"{str(path)!r}: n_readouts={stated!r} ({where}) disagrees with the {n} "
                 "readouts of the spikes dataset: the file was altered or damaged"
             )
+    if version >= CRC_VERSION:
+        _check_sums_datasets(f, path, has_clean)
+        sums_of_index = sums_dataset(f, path, "gt_index")[()]
+        ChunkCheck(f["gt_index"], sums_of_index, path).check((0,), gt_index)
     if DIGEST_ATTR in attrs and attr_text(attrs[DIGEST_ATTR]) != attrs_digest(attrs):
         raise SpikeSimFormatError(
             f"{str(path)!r}: its attributes do not match their checksum (damaged, or edited by "
@@ -232,3 +247,25 @@ def header_of(f: h5py.File, path: Path) -> dict:
         "n_readouts": int(n), "clock_hz": clock_hz, "gt_index": gt_index.tolist(),
         "has_clean": has_clean, "meta": meta, "format_version": int(version),
     }
+
+
+def _check_sums_datasets(f: h5py.File, path: Path, has_clean: bool) -> None:
+    """Format version 2: every checked dataset has its ``<name>_crc32`` companion, one
+    uint32 per chunk (:mod:`spikesim.io.h5.sums`)."""
+    for name in CHECKED:
+        if name != "clean_spikes" or has_clean:
+            sums_dataset(f, path, name)
+
+
+def sums_dataset(f: h5py.File, path: Path, name: str) -> h5py.Dataset:
+    """The ``<name>_crc32`` companion of dataset ``name`` (format version 2), checked
+    to hold one uint32 per chunk; a missing or malformed one is a format error."""
+    ds, sums = f[name], f.get(sums_name(name))
+    grid = chunk_grid(ds.shape, ds.chunks) if ds.chunks else None
+    if (not isinstance(sums, h5py.Dataset) or grid is None or sums.dtype != np.uint32
+            or sums.shape != grid):
+        raise SpikeSimFormatError(
+            f"{str(path)!r}: the chunk checksums of {name!r} ({sums_name(name)}) are "
+            f"missing or malformed (expected uint32 of shape {grid}): the file was altered "
+            "or damaged")
+    return sums

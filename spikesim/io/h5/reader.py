@@ -2,7 +2,9 @@
 
 Readers open the file lazily and reopen it after a fork, and a
 :class:`Sequence` pickles without its handle, so it is safe to hand to
-spawned or forked worker processes.
+spawned or forked worker processes.  Every chunk read of a format-version-2
+file is compared with its stored CRC-32 (:mod:`spikesim.io.h5.sums`), once per
+open file; version-1 files have HDF5's Fletcher-32 only.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ from spikesim.bits import crop_packed
 from spikesim.errors import SpikeSimFileError, SpikeSimFormatError, bad_value
 from spikesim.io._checks import check_flag
 from spikesim.io._compression import have_hdf5plugin
-from spikesim.io.h5.format import READ_CACHE_BYTES, header_of
+from spikesim.io.h5.format import READ_CACHE_BYTES, header_of, sums_dataset
+from spikesim.io.h5.sums import ChunkCheck
 
 __all__ = ["Sequence", "open_h5", "read_h5", "read_header"]
 
@@ -61,6 +64,7 @@ class Sequence:
         self.name = name or self.path.stem
         self._file = None
         self._pid = None
+        self._checks: dict[str, ChunkCheck] = {}
         if header is None:
             header = read_header(self.path)
         self._set_header(header)
@@ -95,7 +99,26 @@ class Sequence:
             # After a fork the inherited handle belongs to the parent: never use it.
             self._file = _open_checked(self.path)
             self._pid = pid
+            self._checks = {}
         return self._file
+
+    def _checker(self, name: str) -> ChunkCheck | None:
+        """The CRC check of dataset ``name`` (None for a version-1 file)."""
+        if self.format_version < 2:
+            return None
+        f = self._h5()
+        check = self._checks.get(name)
+        if check is None:
+            sums = sums_dataset(f, self.path, name)[()]
+            check = self._checks[name] = ChunkCheck(f[name], sums, self.path)
+        return check
+
+    def _checked(self, name: str, starts: tuple, data: np.ndarray) -> np.ndarray:
+        """``data`` read from ``name`` at ``starts``, its chunks checked against their CRCs."""
+        check = self._checker(name)
+        if check is not None:
+            check.check(starts, data)
+        return data
 
     def close(self) -> None:
         if self._file is not None and self._pid == os.getpid():
@@ -113,6 +136,7 @@ class Sequence:
         state = self.__dict__.copy()
         state["_file"] = None
         state["_pid"] = None
+        state["_checks"] = {}
         return state
 
     def __repr__(self) -> str:
@@ -140,7 +164,8 @@ class Sequence:
         b0, b1 = left // 8, (left + w + 7) // 8
         ds = self._dataset(clean)
         try:
-            raw = ds[start:start + length, top:top + h, b0:b1]
+            raw = self._checked(ds.name.lstrip("/"), (start, top, b0),
+                                ds[start:start + length, top:top + h, b0:b1])
         except OSError as exc:
             part = f"{ds.name.lstrip('/')} (readouts {start}–{start + length - 1})"
             raise _read_error(self.path, exc, part) from exc
@@ -164,15 +189,15 @@ class Sequence:
                             f"nothing: {self.name!r} has no ground truth")
         top, left, h, w = check_crop(crop, self.height, self.width)
         try:
-            return _finite_gt(self.path, self._h5()["gt"][int(k), top:top + h,
-                                                            left:left + w, :])
+            gt = self._h5()["gt"][int(k):int(k) + 1, top:top + h, left:left + w, :]
+            return _finite_gt(self.path, self._checked("gt", (int(k), top, left, 0), gt)[0])
         except OSError as exc:
             part = f"ground truth (frame {int(k)}, readout {int(self.gt_index[k])})"
             raise _read_error(self.path, exc, part) from exc
 
     def read_all_gt(self) -> np.ndarray:
         try:
-            return _finite_gt(self.path, self._h5()["gt"][:])
+            return _finite_gt(self.path, self._checked("gt", (0, 0, 0, 0), self._h5()["gt"][:]))
         except OSError as exc:
             raise _read_error(self.path, exc, "ground truth") from exc
 

@@ -4,8 +4,10 @@ Files are written to a temporary sibling and renamed into place only when
 complete (:func:`spikesim.io.atomic_path`); a full disk or a file-size limit
 gives a :class:`~spikesim.errors.SpikeSimFileError` and no file
 (:mod:`spikesim.io._guard`).  Every dataset carries the Fletcher-32 checksum
-filter (after compression), so a damaged chunk is an error when read, never
-different bits.
+filter (after compression), and a CRC-32 of each chunk's data in a companion
+dataset (:mod:`spikesim.io.h5.sums`: Fletcher-32 cannot tell the 16-bit
+words 0x0000 and 0xFFFF apart), so a damaged chunk is an error when read,
+never different bits.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from spikesim.io.h5.format import (
     spike_chunks,
     versions,
 )
+from spikesim.io.h5.sums import ChunkSums, sums_name
 from spikesim.stops import deferred_stops
 
 __all__ = ["H5Writer", "write_h5"]
@@ -87,6 +90,7 @@ class H5Writer:
         self._file = None
         self._guard = None
         self._ctx = None
+        self._sums: dict[str, ChunkSums] = {}
 
     def __enter__(self) -> H5Writer:
         self._ctx = atomic_path(self.path, overwrite=self.overwrite)
@@ -128,6 +132,8 @@ class H5Writer:
                          **self._filter)
         f.create_dataset("gt_index", shape=(0,), maxshape=(None,), dtype=np.int64, chunks=(1024,),
                          fletcher32=True)
+        self._sums = {name: ChunkSums(f[name].shape[1:], f[name].chunks)
+                      for name in (*names, "gt", "gt_index")}
 
     def _abort(self, exc: BaseException) -> None:
         try:
@@ -167,6 +173,7 @@ class H5Writer:
         with deferred_stops():
             for name, arr in pairs:
                 _extend(self._file[name], t0, t1, arr)
+                self._sums[name].feed(arr)
         self.n_readouts = t1
         self._check_io()
 
@@ -186,7 +193,9 @@ class H5Writer:
             k0 = self._file["gt"].shape[0]
             k1 = k0 + gt.shape[0]
             for name, arr, dtype in (("gt", gt, np.float32), ("gt_index", idx, np.int64)):
-                _extend(self._file[name], k0, k1, arr.astype(dtype, copy=False))
+                arr = arr.astype(dtype, copy=False)
+                _extend(self._file[name], k0, k1, arr)
+                self._sums[name].feed(arr)
         self._check_io()
 
     def _finish(self) -> None:
@@ -225,6 +234,10 @@ class H5Writer:
         }
         if meta.get("seed") is not None:
             attrs["seed"] = int(meta["seed"])
+        for name, sums in self._sums.items():  # one CRC-32 per chunk of each dataset
+            f.create_dataset(sums_name(name), data=sums.result(), fletcher32=True,
+                             chunks=True)
+        attrs["chunk_checksum"] = "crc32"
         attrs[DIGEST_ATTR] = attrs_digest(attrs)
         f.attrs.update(attrs)
 

@@ -41,7 +41,7 @@ def test_synthesized_set_is_described(tiny_data):
     assert info["sequences"][0]["sigma_p"] == 0.0  # GN
     assert 0 <= info["sequences"][1]["sigma_p"] <= 1  # GPN, the evaluation's range
     used = {c for s in info["sequences"] for c in s["content"]}
-    assert used <= set(info["pictures"]) | {"texture"}
+    assert used <= set(info["pictures"]) | {"texture", "dead-leaves"}
     assert not {"astronaut", "coffee", "chelsea", "rocket"} & set(info["pictures"])
     assert json.loads((root / "synth.json").read_text())["seed"] == 5
 

@@ -78,7 +78,7 @@ def test_scenes_are_exact_and_move_as_described():
         kinds.add(desc["kind"])
         a, b = scene.radiance(0.0), scene.radiance(39 / 20_000.0)
         assert a.shape == (16, 24, 3) and np.isfinite(a).all() and a.min() >= 0
-        assert set(desc["content"]) <= set(TRAIN_PICTURES) | {"texture"}
+        assert set(desc["content"]) <= set(TRAIN_PICTURES) | {"texture", "dead-leaves"}
         if desc["speed_bin"] == "static":
             np.testing.assert_allclose(a, b, atol=1e-5)
         elif desc["speed_px_s"] > 1000:

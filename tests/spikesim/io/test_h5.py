@@ -85,7 +85,10 @@ def test_simulated_stream_and_chunk_run_write_identical_files(tmp_path):
     assert np.array_equal(loaded.gt, stream.gt)
     assert loaded.sensor == stream.sensor and loaded.seed == 3
     with h5py.File(tmp_path / "a.h5") as f:  # the configuration is in plain attributes
-        assert f.attrs["format"] == "spikesim" and f.attrs["format_version"] == 1
+        assert f.attrs["format"] == "spikesim" and f.attrs["format_version"] == 2
+        for name in ("spikes", "clean_spikes", "gt", "gt_index"):  # a CRC-32 per chunk
+            assert f[f"{name}_crc32"].shape == tuple(
+                -(-n // c) for n, c in zip(f[name].shape, f[name].chunks, strict=True))
         assert json.loads(f.attrs["noise"]) == {"type": "paper", "sigma_g": 5.0, "sigma_p": 0.0}
         assert f.attrs["seed"] == 3 and f.attrs["cfa"] == "RGGB" and f.attrs["width"] == 13
         assert f["spikes"].chunks[0] >= 1 and f["gt"].dtype == np.float32
@@ -198,7 +201,8 @@ def _edit(path, fn):
     [
         (lambda f: f.attrs.__delitem__("format"), "not a spikesim file"),
         (lambda f: f.attrs.__setitem__("format", "other"), "not a spikesim file"),
-        (lambda f: f.attrs.__setitem__("format_version", 2), "format version 2.*upgrade"),
+        (lambda f: f.attrs.__setitem__("format_version", 3), "format version 3.*upgrade"),
+        (lambda f: f.__delitem__("spikes_crc32"), "checksums of 'spikes'.*missing"),
         (lambda f: f.attrs.__delitem__("clock_hz"), "missing root attribute.*clock_hz"),
         (lambda f: f.attrs.__setitem__("bitorder", "big"), "bitorder"),
         (lambda f: f.attrs.__setitem__("meta", "{not json"), "malformed"),
