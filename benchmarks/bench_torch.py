@@ -88,20 +88,23 @@ def simulation_case(side: int, n: int, device: str, repeats: int) -> dict:
     return row
 
 
-def _train_cfg(out: str, device: str, device_sim: bool, workers: int, steps: int) -> dict:
-    return {"online": True, "device_sim": device_sim, "workers": 0 if device_sim else workers,
-            "out": out, "device": device, "steps": steps, "model": "default",
-            "batch_size": 8, "crop": 64, "eval_every": 10**9, "checkpoint_every": 10**9,
-            "progress": False}
+#: The trainer's settings timed: SJDD-Net (default widths), batch 8, 64 × 64 crops;
+#: ``--quick``: the lite model on 16 × 16 crops, batch 2 (a smoke run on a CPU).
+TRAIN = {"model": "default", "batch_size": 8, "crop": 64}
+QUICK_TRAIN = {"model": "lite", "batch_size": 2, "crop": 16}
 
 
-def training_steps(device: str, device_sim: bool, workers: int, steps: int, warm: int) -> dict:
+def training_steps(device: str, device_sim: bool, workers: int, steps: int, warm: int,
+                   quick: bool = False) -> dict:
     """Steps per second of the trainer (``warm`` steps first, not timed)."""
     from spikejdd.train import TrainConfig
     from spikejdd.train.trainer import Trainer
 
     with tempfile.TemporaryDirectory() as tmp:
-        tr = Trainer(TrainConfig.from_dict(_train_cfg(tmp, device, device_sim, workers, steps)))
+        cfg = {"online": True, "device_sim": device_sim, "workers": 0 if device_sim else workers,
+               "out": tmp, "device": device, "steps": warm + steps, "eval_every": 10**9,
+               "checkpoint_every": 10**9, "progress": False, **(QUICK_TRAIN if quick else TRAIN)}
+        tr = Trainer(TrainConfig.from_dict(cfg))
         batches = tr.batches()
         for _ in range(warm):
             tr.step(next(batches))
@@ -117,13 +120,20 @@ def training_steps(device: str, device_sim: bool, workers: int, steps: int, warm
             "steps_s": steps / dt}
 
 
-def first_step_seconds(device: str) -> dict:
+def first_step_seconds(device: str, quick: bool = False) -> dict:
     """A fresh ``spikejdd train --online --device-sim --steps 1``: wall seconds to its
-    exit, and the set-up it records (launch of ``train`` to the first batch)."""
+    exit (the end-of-run validation included), and the set-up it records (from the
+    call of ``train`` to the first batch: model, validation sweep, first batch).
+    ``quick``: the lite model and a small sweep."""
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [sys.executable, "-m", "spikejdd.cli", "train", "--online", "--device-sim",
                "--steps", "1", "--device", device, "--out", f"{tmp}/run", "--quiet",
                "--eval-every", "1000000", "--checkpoint-every", "1000000"]
+        if quick:
+            cfg = dict(QUICK_TRAIN, val_size=[12, 12], val_speeds=[0.0, 3000.0],
+                       val_levels=["GN10"], bench_methods=["tfp+bilinear"])
+            Path(f"{tmp}/cfg.json").write_text(json.dumps(cfg))
+            cmd += ["--config", f"{tmp}/cfg.json"]
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, capture_output=True, text=True)
         wall = time.perf_counter() - t0
@@ -156,7 +166,9 @@ def report(res: dict) -> str:
         lines += ["", f"1000 × 1000 at 20 kHz needs {REAL_TIME:.0e} pixel-readouts/s: the torch "
                   f"backend on {res['device']} runs at {rate / REAL_TIME:.3g} × real time."]
     if res.get("training"):
-        lines += ["", "Training (SJDD-Net default, batch 8, 64 × 64), steps/s:", "",
+        t = res["training_settings"]
+        lines += ["", f"Training (SJDD-Net {t['model']}, batch {t['batch_size']}, "
+                  f"{t['crop']} × {t['crop']} crops), steps/s:", "",
                   "| data | loader processes | steps/s |", "|---|---:|---:|"]
         for t in res["training"]:
             kind = "device simulation" if t["device_sim"] else "simulation in the loader"
@@ -190,9 +202,10 @@ def main(argv=None) -> int:
         print(json.dumps(row), flush=True)
     if args.train:
         steps = 3 if args.quick else args.train_steps
-        res["training"] = [training_steps(args.device, True, 0, steps, 2),
-                           training_steps(args.device, False, args.workers, steps, 2)]
-        res["first_step"] = first_step_seconds(args.device)
+        res["training"] = [training_steps(args.device, True, 0, steps, 2, args.quick),
+                           training_steps(args.device, False, args.workers, steps, 2, args.quick)]
+        res["training_settings"] = QUICK_TRAIN if args.quick else TRAIN
+        res["first_step"] = first_step_seconds(args.device, args.quick)
     res["machine"] = machine.describe()  # with the load at the end
     text = report(res)
     print(text)

@@ -222,3 +222,18 @@ def test_cuda_gives_the_same_bits(scenes, reset, noise):
             got = ss.simulate(scenes[name], sensor, N, seed=SEED, backend="torch",
                               device="cuda")
             np.testing.assert_array_equal(got.packed, want.packed)
+
+
+@pytest.mark.gpu
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_cuda_batches_give_the_cpu_bits():
+    from spikesim.torch_backend import simulate_batch
+
+    frames = torch.rand((6, 3, 3, 24, 40), generator=torch.Generator().manual_seed(0)) * 1.5
+    args = ([0.0, 4.5, 39.0], 39, [0, 1, 2, 3, 4, 5], ["RGGB", "GRBG", None, "BGGR", "GBRG",
+                                                       "RGGB"],
+            [0.0, 10.0, 2.5, 15.0, 0.0, 5.0], [0.0, 0.0, 2.5, 1.0, 1.0, 0.0])
+    for reset in ("modulo", "subtract", "zero"):
+        cpu = simulate_batch(frames, *args, reset=reset)
+        gpu = simulate_batch(frames.cuda(), *args, reset=reset)
+        assert torch.equal(gpu.cpu(), cpu)
