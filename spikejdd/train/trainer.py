@@ -260,6 +260,10 @@ class Trainer:
             ds = OnlineSpikeDataset(cfg.batch_size, cfg.crop, self.mcfg.n_readouts, cfg.seed,
                                     start_step=st.step, rank=self.rank, world=self.world,
                                     clips=cfg.clips, clip_fraction=cfg.clip_fraction)
+            if cfg.workers > 0:  # compiled here once, loaded by every worker from the cache
+                from spikesim.families import is_compiled, precompile
+
+                precompile([f for f in ("noise-free", "paper") if not is_compiled(f)])
             yield from self._loader(ds, batch_size=None)
             return
         while True:
