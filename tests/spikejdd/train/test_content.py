@@ -7,6 +7,8 @@ import pytest
 
 from spikejdd.train.content import (
     BRIGHT_FRACTION,
+    DESATURATED,
+    GREY_KEPT,
     TEXTURE_KINDS,
     _colour_pool,
     _mean_square_radius,
@@ -139,8 +141,28 @@ def test_exposure_reaches_saturation_in_a_fifth_of_the_images():
     # a binomial(1000, 0.2) share: 5 sigma = 0.063
     assert abs(np.mean(sat) - BRIGHT_FRACTION) < 0.065
     grey = np.repeat(base[..., :1], 3, axis=2)
-    coloured = finish(grey, np.random.default_rng(1))
-    assert np.ptp(coloured - coloured.mean(axis=2, keepdims=True)) > 0.01  # grey gets colour
+
+    def chroma(x):  # spread of the channels about their mean, normalised
+        return np.abs(x - x.mean(axis=2, keepdims=True)).mean() / max(x.mean(), 1e-6)
+
+    # grey content: a third stays grey, tinted by the white balance alone (channel gains
+    # within [0.7, 1]); the rest gets a colour mix, whose gains reach outside that
+    ratios, kept = [], []
+    for i in range(600):
+        out = finish(grey, np.random.default_rng([7, i]))
+        gains = (out / np.maximum(grey, 1e-6)).reshape(-1, 3)[grey.reshape(-1, 3)[:, 0] > 0.05]
+        gains = np.median(gains, axis=0)
+        ratios.append(gains.max() / gains.min())
+        kept.append(np.random.default_rng([7, i]).random() < GREY_KEPT)
+    ratios, kept = np.array(ratios), np.array(kept)
+    assert abs(kept.mean() - GREY_KEPT) < 0.1
+    assert ratios[kept].max() <= 1 / 0.7 + 1e-3
+    assert np.mean(ratios[~kept] > 1 / 0.7) > 0.3
+    # colour content: 15 % desaturated to at most 30 % of its chroma
+    before = chroma(base)
+    dull = [chroma(finish(base, np.random.default_rng([8, i]))) < 0.45 * before
+            for i in range(600)]
+    assert abs(np.mean(dull) - DESATURATED) < 0.08
 
 
 def test_percentile_is_numpys():
