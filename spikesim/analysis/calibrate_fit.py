@@ -67,13 +67,16 @@ from spikesim.analysis.temporal_fit import fit_temporal
 from spikesim.errors import bad_value
 
 __all__ = ["fit_parameters", "find_hot_pixels", "fit_dark", "flat_samples", "fit_response",
+           "region_spreads",
            "response_spread", "unmix", "SATURATED_RATE", "MIN_FLAT_SPIKES", "DARK_FALLBACK",
            "DARK_CV2_SE"]
 
 #: Regions whose median rate is at least this are saturated (no gain information).
 SATURATED_RATE = 0.95
-#: Fewest spikes per pixel a flat region needs over the capture (its mean rate's precision).
-MIN_FLAT_SPIKES = 10
+#: Fewest spikes per pixel a flat region needs over the capture: below, the counting noise
+#: (about 0.4 spikes s.d. whatever the rate) swamps a fixed pattern of a few per cent.  A
+#: dim sky of a public 200-readout sample counts about 6.6.
+MIN_FLAT_SPIKES = 4
 #: Dark-current parameters held at the package defaults when no dark region exists.
 DARK_FALLBACK = {k: getattr(ss.noise.PhysicalNoise(), k) for k in (
     "dark_current_rel", "dark_current_spread", "hot_pixel_fraction", "hot_pixel_dark_rel")}
@@ -226,6 +229,45 @@ def response_spread(flat_px, hot_terms, lv, big_r, var_b, t, kappa2, sigma_q2) -
     return float(np.average(parts, weights=npx))
 
 
+def region_spreads(flat_px, hot_terms, lv, big_r, var_b, t, kappa2, sigma_q2) -> list:
+    """Per flat region, ``(CV², standard error)`` of its response spread (as
+    :func:`response_spread`; the error ``sqrt(2/(n − 1))·var/sig²``)."""
+    out = []
+    for x, (_, hot_var), level in zip(flat_px, hot_terms, lv, strict=True):
+        sig2 = (big_r * level) ** 2
+        var = float(x.var())
+        cv2 = (var - var_b - hot_var - _counting_var(x, t, kappa2, sigma_q2)) / sig2
+        out.append((cv2, float(np.sqrt(2.0 / max(x.size - 1, 1))) * var / sig2))
+    return out
+
+
+def plane_spreads(flat_px, hot_terms, lv, big_r, var_b, t, kappa2, sigma_q2, planes, means,
+                  b_mean, levels, split) -> list[dict]:
+    """Per colour plane: its flat regions' response spread (CV², as
+    :func:`response_spread`) and its split into threshold mismatch and PRNU
+    (second-order, ``s² = split·CV²``); with known radiances also the plane's
+    response (spikes per readout at radiance 1, least squares over its
+    regions).  ``planes[i]`` names the plane of flat region ``i``."""
+    rows = []
+    for name in dict.fromkeys(planes):
+        idx = [i for i, p in enumerate(planes) if p == name]
+        cv2 = response_spread([flat_px[i] for i in idx], [hot_terms[i] for i in idx],
+                              [lv[i] for i in idx], big_r, var_b, t, kappa2, sigma_q2)
+        s2 = split * cv2
+        row = {"plane": name, "regions": len(idx), "pixels": int(sum(flat_px[i].size
+                                                                    for i in idx)),
+               "response_cv2": cv2, "combined_gain_spread": math.sqrt(cv2),
+               "threshold_mismatch": math.sqrt(s2),
+               "prnu": math.sqrt(max((1 + cv2) / (1 + s2) - 1, 0.0)),
+               "mean_rate": float(np.mean([means[i] for i in idx]))}
+        if levels is not None:
+            lvp = np.asarray([levels[i] for i in idx], np.float64)
+            row["response_R"] = float(np.sum((np.asarray([means[i] for i in idx]) - b_mean)
+                                             * lvp) / np.sum(lvp**2))
+        rows.append(row)
+    return rows
+
+
 def unmix(cv_a2, cv_b2, big_r, kappa2, sigma_q2, config, notes):
     """Split the fitted moments into model parameters (step 5 and the temporal split)."""
     rho = float(config.mismatch_split)
@@ -253,7 +295,8 @@ def unmix(cv_a2, cv_b2, big_r, kappa2, sigma_q2, config, notes):
             "charge_noise_electrons": math.sqrt(sigma_q2) * e}
 
 
-def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=None):
+def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=None,
+                   planes=None):
     """Fit the model to per-pixel rates and interval moments (see module notes).
 
     Parameters
@@ -268,6 +311,10 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=Non
     names : list of str or None
         What errors call each flat region (:func:`spikesim.analysis.masks.flat_names`;
         None: ``flat region i``).
+    planes : list of str or None
+        The colour plane of each flat region (:mod:`spikesim.analysis.planes`;
+        None: one monochrome plane); the diagnostics give each plane's
+        response spread and PRNU (:func:`plane_spreads`).
 
     Returns ``(params, diagnostics, used_levels, hot_mask)``; ``params`` are
     keyword arguments of :class:`spikesim.noise.PhysicalNoise` plus
@@ -285,8 +332,7 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=Non
     for k, f in enumerate(flats):
         pool |= f
         regions[f] = k + 2
-    tf = fit_temporal(mom, pool, config.fit_charge_noise, regions=regions,
-                      mismatch_share=config.mismatch_split)
+    tf = _temporal(mom, pool, config, regions, notes)
     kappa2, sigma_q2 = tf.kappa2, tf.sigma_q2
     notes.append(tf.reason)
     dark_known = good_dark is not None and bool(good_dark.any())
@@ -320,6 +366,9 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=Non
         notes.append(f"flat radiances unknown: placed by the known full_scale_rate {known:g} "
                      f"(dark-subtracted rate over the mean response {response:.4g}): "
                      + ", ".join(f"{v:.4g}" for v in lv))
+    per_plane = plane_spreads(flat_px, hot_terms, lv, big_r, cv_b2 * b_mean**2, t, kappa2,
+                              sigma_q2, planes or ["mono"] * len(flats), means, b_mean,
+                              levels, float(config.mismatch_split))
     n_dark = int(dark.sum()) if dark is not None else 0
     n_hot = int(hot.sum())
     params["dark_current_rel"] = b_mean / big_r
@@ -335,12 +384,68 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=Non
     order = ("full_scale_rate", "electrons_per_threshold", "shot_noise", "dark_current_rel",
              "dark_current_spread", "threshold_mismatch", "prnu", "temporal_threshold_noise",
              "hot_pixel_fraction", "hot_pixel_dark_rel", "charge_noise_electrons")
+    if tf.n_pixels == 0:  # temporal noise not identified: the package defaults (or E given)
+        default = ss.noise.PhysicalNoise()
+        params.update(electrons_per_threshold=float(config.electrons_per_threshold or
+                                                    default.electrons_per_threshold),
+                      temporal_threshold_noise=default.temporal_threshold_noise,
+                      shot_noise=default.shot_noise, charge_noise_electrons=0.0)
     params = {k: params[k] for k in order}
+    identified = _unidentified(tf, dark_known, spread_known, levels)
     diag = {"kappa2": kappa2, "sigma_q2": sigma_q2, "charge_noise_fitted": tf.charge_noise_fitted,
             "sigma_q2_estimate": tf.sigma_q2_estimate, "sigma_q2_se": tf.sigma_q2_se,
             "interval_span": list(tf.interval_span), "intervals_used": tf.n_intervals,
             "dark_rate": b_mean, "dark_cv2": cv_b2, "response_R": big_r, "response_cv2": cv_a2,
             "combined_gain_spread": math.sqrt(cv_a2), "mismatch_split": config.mismatch_split,
             "hot_pixels": n_hot, "dark_pixels": n_dark,
-            "flat_pixels": [int(f.sum()) for f in flats], "flat_rates": means, "notes": notes}
+            "flat_pixels": [int(f.sum()) for f in flats], "flat_rates": means,
+            "planes": per_plane, "identified": identified, "notes": notes,
+            "region_spreads": region_spreads(flat_px, hot_terms, lv, big_r, cv_b2 * b_mean**2,
+                                             t, kappa2, sigma_q2)}
     return params, diag, lv, hot
+
+
+#: Shortest mean interval (readouts) of the temporal fit: below, the clock's rounding is
+#: most of the interval variance, and its term depends on each pixel's mean interval more
+#: steeply than that mean is measured (a chip of E = 3000 e⁻ read 7-10 times its κ² from
+#: intervals of 4-5 readouts).
+MIN_MEAN_INTERVAL = 5.0
+
+
+def _temporal(mom, pool, config, regions, notes):
+    """:func:`fit_temporal` on the regions' pixels; when none has intervals of
+    :data:`MIN_MEAN_INTERVAL` readouts or more (bright regions), the temporal noise is
+    not identified: the package defaults' κ², flagged by ``n_pixels == 0``."""
+    from spikesim.analysis.temporal_fit import TemporalFit
+    from spikesim.errors import SpikeSimValueError
+
+    try:
+        return fit_temporal(mom, pool, config.fit_charge_noise, min_mean=MIN_MEAN_INTERVAL,
+                            regions=regions, mismatch_share=config.mismatch_split)
+    except SpikeSimValueError:
+        why = (f"temporal noise not identified: no region pixel has 3 or more intervals of "
+               f"{MIN_MEAN_INTERVAL:g} or more readouts (the regions fire faster than one "
+               f"spike per {MIN_MEAN_INTERVAL:g} readouts, where the clock's rounding is the "
+               "interval variance; a dimmer region helps)")
+        return TemporalFit(theory.cycle_cv2(ss.noise.PhysicalNoise()), 0.0, float("nan"),
+                           float("nan"), False, why, 0, 0, (float("nan"), float("nan")))
+
+
+def _unidentified(tf, dark_known: bool, spread_known: bool, levels) -> dict:
+    """The parameters this fit could not identify, each with the reason."""
+    out = {}
+    if tf.n_pixels == 0:  # no interval statistics at all
+        why = "not identified: " + tf.reason.split(": ", 1)[1].split(" (")[0]
+        out.update(electrons_per_threshold=why, temporal_threshold_noise=why,
+                   charge_noise_electrons=why)
+    elif not tf.charge_noise_fitted:
+        out["charge_noise_electrons"] = tf.charge_noise_status()
+    if not dark_known:
+        why = "not identified: no dark region"
+        if levels is None or len(levels) < 2:
+            out["dark_current_rel"] = why
+        out.update(dark_current_spread=why, hot_pixel_fraction=why, hot_pixel_dark_rel=why)
+    elif not spread_known:
+        out["dark_current_spread"] = ("not identified: the dark current is too weak for this "
+                                      "capture length (counting noise dominates)")
+    return out

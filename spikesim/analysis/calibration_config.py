@@ -17,8 +17,8 @@ from spikesim.errors import bad_value
 __all__ = ["CalibrationConfig", "MIN_READOUTS", "DEFAULT_MISMATCH_SPLIT", "config_with"]
 
 #: Shortest capture accepted (readouts): the length of public real samples.  At
-#: 200 readouts a region needs a rate of 0.05 spikes/readout for 10 spikes per
-#: pixel and intervals up to 40 readouts give at least 4 per pixel.
+#: 200 readouts a region needs a rate of 0.02 spikes/readout for the fit's 4 spikes
+#: per pixel and intervals up to 40 readouts give at least 4 per pixel.
 MIN_READOUTS = 200
 #: Threshold-mismatch share of the combined response spread (package defaults, SCSim).
 DEFAULT_MISMATCH_SPLIT = 0.045**2 / (0.045**2 + 0.058**2)
@@ -33,7 +33,10 @@ class CalibrationConfig:
     detect : bool
         Find dark and flat regions automatically when no mask is given.
     min_pixels : int
-        Smallest detected region (pixels, after erosion).
+        Smallest detected region (pixels, after erosion; on a colour capture a
+        quarter of it, at least 32, in each colour plane).  256 by default: at a
+        few spikes per pixel, smaller patches of moving content pass the
+        one-level and motion tests by chance.
     electrons_per_threshold : float or None
         Known electrons per threshold (e⁻; from the chip's conversion gain):
         then the comparator jitter σ_t is fitted.  ``None``: σ_t is held at
@@ -65,7 +68,7 @@ class CalibrationConfig:
     """
 
     detect: bool = True
-    min_pixels: int = 64
+    min_pixels: int = 256
     electrons_per_threshold: float | None = None
     temporal_threshold_noise: float = 0.006
     mismatch_split: float = DEFAULT_MISMATCH_SPLIT

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from spikesim._validate import check_window
+from spikesim.cfa import normalize_cfa
 from spikesim.errors import SpikeSimTypeError, bad_value
 from spikesim.stream import pixel_counts as stream_pixel_counts
 
@@ -41,6 +42,10 @@ class Capture:
     n_readouts, height, width : int
     cfa : str or None
         Bayer pattern when known (``None`` = monochrome or unknown).
+    cfa_known : bool
+        Whether the source records its colour filter (a simulated stream, an
+        HDF5 file, a ``.dat`` opened with a ``cfa``), so that ``cfa=None``
+        means monochrome rather than unknown.
     clock_hz : float or None
         Readout clock when known.
     meta : dict
@@ -48,10 +53,11 @@ class Capture:
     """
 
     def __init__(self, reader, n_readouts: int, height: int, width: int, cfa=None,
-                 clock_hz=None, meta=None, name: str = "capture"):
+                 clock_hz=None, meta=None, name: str = "capture", cfa_known: bool = False):
         self._reader = reader
         self.n_readouts, self.height, self.width = int(n_readouts), int(height), int(width)
-        self.cfa = cfa
+        self.cfa = normalize_cfa(cfa)
+        self.cfa_known = bool(cfa_known) or self.cfa is not None
         self.clock_hz = float(clock_hz) if clock_hz else None
         self.meta = dict(meta or {})
         self.name = name
@@ -94,10 +100,12 @@ def as_capture(source, *, height: int | None = None, width: int | None = None,
     ``source`` may be a ``Capture``, a ``SpikeStream``, a ``(T, H, W)`` 0/1
     array, an object with ``read_window`` (``DatFile``, HDF5 ``Sequence``), or a
     path to a ``.dat`` file (``height``/``width``/``flip`` apply) or a spikesim
-    HDF5 file or folder.  ``cfa``/``clock_hz`` override what the source says.
+    HDF5 file or folder.  ``cfa``/``clock_hz`` override what the source says
+    (a ``cfa`` given, ``"mono"`` included, makes the colour filter known).
     """
     if isinstance(source, Capture):
         return source
+    given = cfa is not None
     if isinstance(source, (str, os.PathLike)):
         from spikesim.io.source import open_source
 
@@ -112,18 +120,23 @@ def as_capture(source, *, height: int | None = None, width: int | None = None,
         if 0 in arr.shape:
             raise bad_value("capture.shape", arr.shape, "T, H, W >= 1")
         return Capture(lambda a, b: arr[a:b], *arr.shape, cfa=cfa, clock_hz=clock_hz,
-                       name="array")
+                       name="array", cfa_known=given)
     if hasattr(source, "unpack") and hasattr(source, "packed"):  # SpikeStream
         meta = dict(source.meta)
         return Capture(lambda a, b: source.unpack(start=a, stop=b), source.n_readouts,
                        source.height, source.width, cfa=cfa or source.cfa,
-                       clock_hz=clock_hz or source.clock_hz, meta=meta, name="stream")
+                       clock_hz=clock_hz or source.clock_hz, meta=meta, name="stream",
+                       cfa_known=True)
     if hasattr(source, "read_window"):
+        from spikesim.io.dat import DatFile
+
         meta = dict(getattr(source, "meta", {}) or {})
+        # a .dat records no colour filter (only what it was opened with); HDF5 always does
+        known = given or not isinstance(source, DatFile)
         return Capture(lambda a, b: source.read_window(a, b - a), source.n_readouts,
                        source.height, source.width, cfa=cfa or getattr(source, "cfa", None),
                        clock_hz=clock_hz or getattr(source, "clock_hz", None), meta=meta,
-                       name=str(getattr(source, "name", "capture")))
+                       name=str(getattr(source, "name", "capture")), cfa_known=known)
     raise SpikeSimTypeError(
         "capture must be a (T, H, W) array, a SpikeStream, a DatFile/Sequence or a path, "
         f"got {type(source).__name__}")
@@ -143,7 +156,9 @@ class IntervalMoments:
 
     ``n``, ``s1``, ``s2`` are (H, W): number of closed intervals, their sum and
     their sum of squares; ``first``/``last`` the first and last spike readout
-    (−1 when the pixel never fired).  ``samples`` maps a label to a 1-D int64
+    (−1 when the pixel never fired); ``nd``, ``d2`` the number of successive
+    interval differences ``I[k+1] − I[k]`` and the sum of their squares
+    (:meth:`local_var`).  ``samples`` maps a label to a 1-D int64
     array of the intervals of the pixels selected for it.
     """
 
@@ -153,6 +168,8 @@ class IntervalMoments:
     first: np.ndarray
     last: np.ndarray
     samples: dict
+    nd: np.ndarray | None = None
+    d2: np.ndarray | None = None
 
     def mean(self) -> np.ndarray:
         """(H, W) mean interval (NaN where no interval)."""
@@ -165,6 +182,15 @@ class IntervalMoments:
         with np.errstate(invalid="ignore", divide="ignore"):
             v = (self.s2 - self.s1**2 / np.maximum(n, 1)) / np.maximum(n - 1, 1)
         return np.where(self.n > 1, np.maximum(v, 0.0), np.nan)
+
+    def local_var(self) -> np.ndarray:
+        """(H, W) half the mean squared difference of successive intervals,
+        ``Σ(I[k+1] − I[k])²/(2·nd)`` (readouts²; NaN where no difference): the
+        interval variance without the slow changes of the pixel's mean interval
+        that moving light brings (its rounding term differs from :meth:`var`'s:
+        :func:`spikesim.analysis.theory.local_frac_term`)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(self.nd > 0, self.d2 / (2 * np.maximum(self.nd, 1)), np.nan)
 
 
 def pixel_intervals(cap: Capture, start: int = 0, stop: int | None = None,
@@ -186,6 +212,9 @@ def pixel_intervals(cap: Capture, start: int = 0, stop: int | None = None,
     s2 = np.zeros(npx, np.float64)
     first = np.full(npx, -1, np.int64)
     last = np.full(npx, -1, np.int64)
+    last_iv = np.full(npx, -1, np.int64)  # each pixel's latest interval (-1: none yet)
+    nd = np.zeros(npx, np.int64)
+    d2 = np.zeros(npx, np.float64)
     keep = keep or {}
     keep_flat = {k: np.asarray(m, bool).ravel() for k, m in keep.items()}
     samples: dict[str, list] = {k: [] for k in keep}
@@ -210,6 +239,19 @@ def pixel_intervals(cap: Capture, start: int = 0, stop: int | None = None,
             n += np.bincount(pv, minlength=npx)
             s1 += np.bincount(pv, weights=iv, minlength=npx)
             s2 += np.bincount(pv, weights=iv.astype(np.float64) ** 2, minlength=npx)
+            if iv.size:  # successive differences, continuing from each pixel's last interval
+                before = np.empty_like(iv)
+                before[1:] = iv[:-1]
+                cont = np.zeros(iv.size, bool)
+                cont[1:] = pv[1:] == pv[:-1]
+                before[~cont] = last_iv[pv[~cont]]
+                ok = cont | (before >= 0)
+                nd += np.bincount(pv[ok], minlength=npx)
+                d2 += np.bincount(pv[ok], weights=(iv[ok] - before[ok]).astype(np.float64) ** 2,
+                                  minlength=npx)
+                end = np.ones(iv.size, bool)
+                end[:-1] = pv[1:] != pv[:-1]
+                last_iv[pv[end]] = iv[end]
             for k, m in keep_flat.items():
                 if kept[k] < max_samples:
                     sel = iv[m[pv]][: max_samples - kept[k]]
@@ -227,7 +269,8 @@ def pixel_intervals(cap: Capture, start: int = 0, stop: int | None = None,
         bar.close()
     out = {k: (np.concatenate(v) if v else np.zeros(0, np.int64)) for k, v in samples.items()}
     return IntervalMoments(n.reshape(h, w), s1.reshape(h, w), s2.reshape(h, w),
-                           first.reshape(h, w), last.reshape(h, w), out)
+                           first.reshape(h, w), last.reshape(h, w), out, nd.reshape(h, w),
+                           d2.reshape(h, w))
 
 
 def _bar(enabled: bool, total: int, desc: str):

@@ -22,6 +22,17 @@ sensors on the same scene and seed — the calibration compares its fitted
 sensor with :func:`default_sensor_like`, the package's default
 ``PhysicalNoise`` at the fitted mean response, so the report shows which one
 re-simulates the capture more closely.
+
+A capture without a flat region (:func:`natural_goodness_of_fit`) is
+re-simulated on a static scene built from the capture's rates smoothed over
+5 × 5 pixels of each colour plane
+(:func:`spikesim.analysis.natural_fit.smooth_scene`: the capture's own fixed
+pattern is averaged out of the scene, and so is the counting noise that a
+narrower estimate would leave as pixel-to-pixel roughness; radiance 0 on the
+dark region) and compared on the pools and the steady pixels
+(:func:`spikesim.analysis.gof_stats.pool_distances`).  Every
+check returns ``curves`` for the side-by-side plot of
+:mod:`spikesim.analysis.gof_report`.
 """
 
 from __future__ import annotations
@@ -30,10 +41,15 @@ import numpy as np
 
 import spikesim as ss
 from spikesim.analysis.capture import as_capture, pixel_counts, pixel_intervals
-from spikesim.analysis.gof_stats import ks_critical, ks_distance, summary_distances
+from spikesim.analysis.gof_stats import (
+    ks_critical,
+    ks_distance,
+    pool_distances,
+    summary_distances,
+)
 
-__all__ = ["goodness_of_fit", "compare_resimulations", "default_sensor_like", "ks_distance",
-           "ks_critical"]
+__all__ = ["goodness_of_fit", "natural_goodness_of_fit", "compare_resimulations",
+           "default_sensor_like", "ks_distance", "ks_critical"]
 
 
 def goodness_of_fit(cap, sensor, rate, dark, flats, levels, hot, n_readouts: int,
@@ -106,8 +122,62 @@ def goodness_of_fit(cap, sensor, rate, dark, flats, levels, hot, n_readouts: int
         ax2.legend(fontsize=7)
 
     summary = summary_distances(c_rate, s_rate, m_cap, m_sim, dark, flats)
+    big = regions[-1][1] if not flats else max(flats, key=lambda f: int(f.sum()))
+    curves = {"rates": (c_rate[big], s_rate[big]), "rate_label": "pixel rate (spikes/readout), "
+              "largest flat region" if flats else "pixel rate (spikes/readout), dark region"}
     return {"n_readouts": n_readouts, "fpn_seed": sim_sensor.noise.fpn_seed, "seed": seed,
-            "regions": out, "summary": summary, "headers": headers, "rows": rows, "plot": plot}
+            "regions": out, "summary": summary, "headers": headers, "rows": rows, "plot": plot,
+            "curves": curves}
+
+
+def _resimulate(sensor, img, n_readouts, seed, progress):
+    """The re-simulation of the static scene ``img`` by ``sensor`` with a fixed
+    pattern of its own (module notes) and the re-simulating sensor."""
+    noise = sensor.noise
+    sim_sensor = sensor.replace(noise=noise.replace(fpn_seed=noise.fpn_seed + 7919 + seed))
+    stream = ss.simulate(ss.scenes.Static(img.astype(np.float32)), sim_sensor, n_readouts,
+                         seed=seed, progress=progress)
+    return as_capture(stream), sim_sensor
+
+
+def natural_goodness_of_fit(cap, sensor, dark, pools, steady, planes, n_readouts: int,
+                            seed: int = 1, progress: bool = False, rate=None) -> dict:
+    """Compare a capture without a flat region with a re-simulation (module notes).
+
+    ``pools``: :class:`spikesim.analysis.natural_fit.Pools`; ``steady``: (H, W)
+    bool, the pixels of the interval statistic; ``planes``: the colour planes;
+    ``rate``: the capture's (H, W) rates for the re-simulated scene (default:
+    over its first ``n_readouts``).
+    """
+    from spikesim.analysis.natural_fit import local_scene, smooth_scene
+
+    cap = as_capture(cap)
+    noise = sensor.noise
+    resp = sensor.full_scale_rate * (1 + noise.threshold_mismatch**2)
+    base = _counts(cap, n_readouts) / n_readouts if rate is None else rate
+    img = np.maximum(smooth_scene(base, planes) - noise.dark_current_rel * resp, 0.0) / resp
+    if dark is not None:
+        img[dark] = 0.0
+    sim, sim_sensor = _resimulate(sensor, img, n_readouts, seed, progress)
+    c_rate = _counts(cap, n_readouts) / n_readouts
+    s_rate = _counts(sim, n_readouts) / n_readouts
+    c_scene = local_scene(c_rate, planes)[0]
+    s_scene = local_scene(s_rate, planes)[0]
+    m_cap = pixel_intervals(cap, 0, n_readouts)
+    m_sim = pixel_intervals(sim, 0, n_readouts)
+    summary = pool_distances(c_rate, s_rate, c_scene, s_scene, pools.label, m_cap, m_sim, steady)
+    labels, sizes = np.unique(pools.label[pools.label > 0], return_counts=True)
+    curves = {"rates": (np.zeros(0), np.zeros(0)), "rate_label": "pixel rate / local scene"}
+    if labels.size:
+        at = pools.label == labels[np.argmax(sizes)]
+        curves["rates"] = (c_rate[at] / np.maximum(c_scene[at], 1e-12),
+                           s_rate[at] / np.maximum(s_scene[at], 1e-12))
+        curves["rate_label"] = (f"pixel rate / local scene, largest pool (~"
+                                f"{float(np.mean(c_scene[at])):.3g} spikes/readout)")
+    return {"n_readouts": n_readouts, "fpn_seed": sim_sensor.noise.fpn_seed, "seed": seed,
+            "summary": summary, "curves": curves, "pools": int(labels.size),
+            "pool_pixels": int(sizes.sum()) if sizes.size else 0,
+            "steady_pixels": int(steady.sum())}
 
 
 def _counts(cap, n):
@@ -134,11 +204,20 @@ def default_sensor_like(sensor, scale_known: bool = True):
 
 
 def compare_resimulations(cap, sensors: dict, rate, dark, flats, levels, hot, n_readouts: int,
-                          seed: int = 1, progress: bool = False) -> dict:
+                          seed: int = 1, progress: bool = False, natural=None) -> dict:
     """:func:`goodness_of_fit` of each named sensor (same scene and seed) and a table
-    of the summary distances, one row per sensor; the smallest per column is closest."""
-    fits = {name: goodness_of_fit(cap, s, rate, dark, flats, levels, hot, n_readouts, seed=seed,
-                                  progress=progress) for name, s in sensors.items()}
+    of the summary distances, one row per sensor; the smallest per column is closest.
+
+    ``natural``: ``(pools, steady, planes)`` for a capture without a flat
+    region (:func:`natural_goodness_of_fit`; ``flats`` is then empty)."""
+    if natural is not None:
+        fits = {name: natural_goodness_of_fit(cap, s, dark, *natural, n_readouts, seed=seed,
+                                              progress=progress, rate=rate)
+                for name, s in sensors.items()}
+    else:
+        fits = {name: goodness_of_fit(cap, s, rate, dark, flats, levels, hot, n_readouts,
+                                      seed=seed, progress=progress)
+                for name, s in sensors.items()}
     headers = ["sensor", "rate KS (mean D)", "interval CV error", "spatial spread error"]
     rows = [(name, f["summary"]["rate_ks"], f["summary"]["interval_cv_error"],
              f["summary"]["spatial_spread_error"]) for name, f in fits.items()]

@@ -18,6 +18,15 @@ Each pixel's sample variance ``v_i`` over ``n_i`` intervals has variance
 ``v_i − F_i`` with weights ``(n_i − 1)/(2·V_i²)``, ``V_i`` the model of the
 previous iteration (five fixed-point iterations, both terms kept ≥ 0).
 
+**Identified or not.**  σ_q² is kept only when the mean intervals span at
+least ``MIN_SPAN`` (×1.5, 10th to 90th percentile), its free estimate is at
+least ``MIN_Z`` (3) standard errors above 0 *and* its term adds at least
+``MIN_SHARE`` (10 %) to the interval variance at the longest intervals
+measured; otherwise the charge noise is *not identified* and keeps its
+default 0 (a capture made without charge noise gave 3.2 standard errors from
+a term worth under 1 % of the variance: significant, but no prediction the
+capture can check depends on it).
+
 **Threshold mismatch.**  The charge noise is fixed in electrons, so a pixel of
 threshold ``t_i`` (relative) has ``σ_q/t_i``, and its charge-noise variance is
 ``σ_q²·m_i³/t_i²``.  Within a static region the mean intervals differ by the
@@ -29,6 +38,21 @@ its region (``regions``), ``t̂_i = (m_i/m̄)^ρ`` with ``m̄`` the region's
 geometric mean and ``ρ = s²/(s² + p²)`` the mismatch share of the response
 spread (``mismatch_share``; the calibration's ``mismatch_split``), divides the
 column: ``m_i³/t̂_i²``.
+
+**Moving light** (``local=True``, for captures without static regions): each
+pixel's variance is replaced by its local variance, half the mean squared
+difference of successive intervals (:meth:`IntervalMoments.local_var`), whose
+expectation is ``Var(τ) + 2·F(m, sd) − F(2m, √2·sd)/2``
+(:func:`spikesim.analysis.theory.local_frac_term`): a change of the light
+that is slow against two intervals cancels in the difference, while it
+inflates the plain variance by the variance of the pixel's mean interval
+over the capture.
+
+**Outliers.**  A pixel whose interval variance exceeds the 0.999 quantile
+(:data:`OUTLIER_P`) of its law under the fitted model (``V·χ²(n − 1)/(n −
+1)``, ``n`` its intervals) is left out and the fit repeated (twice at most;
+the note counts them): a few pixels of moving content or edges in a region
+would otherwise dominate κ², their variance being many times the model's.
 
 **Diffusion.**  Where a pixel's drift ``q = 1/m`` is below ``10·σ_q²`` (the
 dark: its charge, held at zero, crosses by diffusion, and the random walk's
@@ -47,12 +71,19 @@ import numpy as np
 from spikesim.analysis import theory
 from spikesim.errors import bad_value
 
-__all__ = ["TemporalFit", "fit_temporal", "MIN_SPAN", "MIN_Z"]
+__all__ = ["TemporalFit", "fit_temporal", "kappa2_by_bin", "BinFit", "MIN_SPAN", "MIN_Z",
+           "MIN_SHARE"]
 
 #: Least ratio of the 90th to the 10th percentile of the mean intervals for a slope.
 MIN_SPAN = 1.5
 #: Least significance (standard errors) of σ_q² for it to be kept.
 MIN_Z = 3.0
+#: Least share of the interval variance ``κ²·m²`` the charge-noise term ``σ_q²·m³`` must
+#: reach at the longest intervals measured (90th percentile) for σ_q² to be kept: a
+#: smaller term changes no prediction the capture can check (not identified).
+MIN_SHARE = 0.1
+#: Quantile of a pixel's variance under the fitted model beyond which it is left out.
+OUTLIER_P = 0.999
 #: Pixels whose drift ``q`` is below this many σ_q² fire by diffusion (left out).
 DIFFUSION_DRIFT = 10.0
 
@@ -70,6 +101,17 @@ class TemporalFit:
     n_pixels: int
     n_intervals: int
     interval_span: tuple[float, float]  # 10th and 90th percentile of the mean intervals
+    outliers: int = 0  # pixels left out as implausible (module notes)
+
+    def charge_noise_status(self) -> str | None:
+        """None when σ_q² was fitted, else why not: ``not fitted (...)`` when
+        turned off, otherwise ``not identified: ...``."""
+        if self.charge_noise_fitted:
+            return None
+        if self.reason.startswith("charge noise not fitted"):
+            return "not fitted (fit_charge_noise=False)"
+        text = self.reason.removeprefix("charge noise not identified: ")
+        return "not identified: " + text.split(": charge")[0].split("; charge")[0]
 
 
 @dataclass(frozen=True)
@@ -81,15 +123,25 @@ class _Pixels:
     var: np.ndarray
     n: np.ndarray
     m3: np.ndarray
+    local: bool = False
 
     def where(self, keep: np.ndarray) -> _Pixels:
-        return _Pixels(self.mean[keep], self.var[keep], self.n[keep], self.m3[keep])
+        return _Pixels(self.mean[keep], self.var[keep], self.n[keep], self.m3[keep], self.local)
+
+    def rounding(self, sd: np.ndarray) -> np.ndarray:
+        """The clock's rounding term of :attr:`var` (module notes)."""
+        if self.local:
+            return theory.local_frac_term(self.mean, sd)
+        return theory.frac_variance(self.mean, sd)
 
 
-def _select(mom, mask, min_mean, min_n, regions=None, mismatch_share=0.0) -> _Pixels:
+def _select(mom, mask, min_mean, min_n, regions=None, mismatch_share=0.0,
+            local: bool = False) -> _Pixels:
     sel = mask & (mom.n >= min_n) & (mom.mean() >= min_mean)
+    if local:
+        sel &= mom.nd >= min_n - 1
     mean = mom.mean()[sel]
-    n = mom.n[sel].astype(np.float64)
+    n = (mom.nd[sel] + 1 if local else mom.n[sel]).astype(np.float64)
     m3 = mean**3
     if regions is not None and mismatch_share > 0:  # σ_q/t_i (module notes)
         label = np.asarray(regions)[sel]
@@ -98,7 +150,7 @@ def _select(mom, mask, min_mean, min_n, regions=None, mismatch_share=0.0) -> _Pi
             log_m = np.log(mean[at])
             t_hat = np.exp(mismatch_share * (log_m - np.average(log_m, weights=n[at])))
             m3[at] /= t_hat**2
-    return _Pixels(mean, mom.var()[sel], n, m3)
+    return _Pixels(mean, (mom.local_var() if local else mom.var())[sel], n, m3, local)
 
 
 def _wls(px: _Pixels, two_terms: bool, iterations: int = 5, nonneg: bool = True):
@@ -114,7 +166,7 @@ def _wls(px: _Pixels, two_terms: bool, iterations: int = 5, nonneg: bool = True)
     chi2 = 1.0
     for _ in range(iterations):
         sd = np.sqrt(np.maximum(k2 * mean**2 + c * px.m3, 0.0))
-        f = theory.frac_variance(mean, sd)
+        f = px.rounding(sd)
         v_model = np.maximum(k2 * mean**2 + c * px.m3 + f, 1e-3)
         w = (n - 1) / (2 * v_model**2)
         y = var - f
@@ -152,7 +204,8 @@ def _solve_nonneg(x, y, w):
 
 
 def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0,
-                 min_n: int = 3, regions=None, mismatch_share: float = 0.0) -> TemporalFit:
+                 min_n: int = 3, regions=None, mismatch_share: float = 0.0,
+                 local: bool = False) -> TemporalFit:
     """Fit κ² and, when supported, σ_q² to the pixels of ``mask`` (see module notes).
 
     Parameters
@@ -169,13 +222,27 @@ def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0
     mismatch_share : float
         ``ρ = s²/(s² + p²)``, the threshold mismatch's share of the response
         spread (0: no correction).
+    local : bool
+        Fit the local variance of successive intervals instead of the
+        variance (module notes, *moving light*).
     """
-    px = _select(mom, mask, min_mean, min_n, regions, mismatch_share)
+    px = _select(mom, mask, min_mean, min_n, regions, mismatch_share, local)
     if px.mean.size == 0:
         raise bad_value("capture length", f"no pixel with >= {min_n} intervals of >= "
                         f"{min_mean:g} readouts", "a longer capture, or flat regions of "
                         f"<= {1 / min_mean:g} spikes per readout, to measure temporal noise")
     fit = _fit(px, fit_charge_noise)
+    for _ in range(2):  # leave out pixels whose variance the model cannot have, and fit again
+        keep = _plausible(px, fit)
+        if keep.all() or keep.sum() < 3:
+            break
+        px = px.where(keep)
+        refit = _fit(px, fit_charge_noise)
+        fit = dataclasses.replace(refit, outliers=fit.outliers + int((~keep).sum()))
+    if fit.outliers:
+        fit = dataclasses.replace(fit, reason=fit.reason + (
+            f" ({fit.outliers} pixel{'s' if fit.outliers != 1 else ''} whose interval variance "
+            f"exceeds the model's {OUTLIER_P:g} quantile left out: moving light or edges)"))
     if fit.sigma_q2 > 0:  # leave out the pixels that fire by diffusion, and fit again
         drifting = px.mean < 1.0 / (DIFFUSION_DRIFT * fit.sigma_q2)
         if not drifting.all() and drifting.sum() >= 3:
@@ -186,6 +253,17 @@ def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0
                     f" ({left} pixel{'s' if left != 1 else ''} whose drift is below "
                     f"{DIFFUSION_DRIFT:g}·σ_q² left out: they fire by diffusion)"))
     return fit
+
+
+def _plausible(px: _Pixels, fit: TemporalFit) -> np.ndarray:
+    """Pixels whose sample variance is below the :data:`OUTLIER_P` quantile of
+    its law under the fitted model, ``V·χ²(n − 1)/(n − 1)``."""
+    from scipy.stats import chi2
+
+    sd = np.sqrt(np.maximum(fit.kappa2 * px.mean**2 + fit.sigma_q2 * px.m3, 0.0))
+    model = fit.kappa2 * px.mean**2 + fit.sigma_q2 * px.m3 + px.rounding(sd)
+    dof = np.maximum(px.n - 1, 1)
+    return px.var <= model * chi2.ppf(OUTLIER_P, dof) / dof
 
 
 def _fit(px: _Pixels, fit_charge_noise: bool) -> TemporalFit:
@@ -205,6 +283,14 @@ def _fit(px: _Pixels, fit_charge_noise: bool) -> TemporalFit:
     _, c_free, scale, cov = _wls(px, two_terms=True, nonneg=False)
     se = float(np.sqrt(max(cov[1, 1], 0.0) * scale))
     k2, c, _, _ = _wls(px, two_terms=True)
+    share = c * hi / k2 if k2 > 0 else float("inf")
+    if c_free > 0 and c_free >= MIN_Z * se and c > 0 and share < MIN_SHARE:
+        return TemporalFit(k1, 0.0, c_free, se, False,
+                           f"charge noise not identified: σ_q² = {c:.3g} ± {se:.2g} is "
+                           f"{c_free / se:.3g} standard errors above 0 but would add only "
+                           f"{share:.1%} to the interval variance at the longest intervals "
+                           f"measured ({hi:.3g} readouts; {MIN_SHARE:.0%} needed): "
+                           "charge_noise_electrons kept at its default 0", **common)
     if c_free > 0 and c_free >= MIN_Z * se and c > 0:
         return TemporalFit(k2, c, c, se, True,
                            f"CV² grows with the interval: σ_q² = {c:.3g} ± {se:.2g} "
@@ -222,5 +308,53 @@ def _no_slope_reason(c_free: float, se: float) -> str:
                 f"{-c_free / se:.3g} standard errors below 0): a model misfit, the model's CV² "
                 "can only grow with the interval (moving content or non-stationary light in "
                 "the regions?); charge noise kept at 0")
-    return (f"CV² slope not significant (σ_q² = {c_free:.3g} ± {se:.2g}, needs "
-            f"{MIN_Z:g} standard errors): charge noise kept at 0")
+    return (f"charge noise not identified: CV² slope not significant (σ_q² = {c_free:.3g} ± "
+            f"{se:.2g}, needs {MIN_Z:g} standard errors): charge_noise_electrons kept at its "
+            "default 0")
+
+
+@dataclass(frozen=True)
+class BinFit:
+    """κ² of the pixels whose mean interval lies in ``[lo, hi)`` readouts: its
+    estimate, standard error, pixels and intervals."""
+
+    lo: float
+    hi: float
+    kappa2: float
+    se: float
+    n_pixels: int
+    n_intervals: int
+
+
+def kappa2_by_bin(mom, mask, local: bool = True, min_pixels: int = 30,
+                  min_mean: float = 2.0, min_n: int = 3) -> list[BinFit]:
+    """κ² fitted separately over the pixels of ``mask`` in each octave of mean
+    interval (2–4, 4–8, … readouts), per-cycle noise only (no charge-noise
+    term), from the local variance (``local``) or the variance.  Outliers are
+    left out as in :func:`fit_temporal`.  Anything that adds interval variance
+    and grows with the interval — moving light, charge noise — raises the
+    estimates of the longer bins; the per-cycle noise is the same in all.
+    Bins of fewer than ``min_pixels`` pixels are skipped."""
+    px = _select(mom, mask, min_mean, min_n, local=local)
+    out = []
+    if px.mean.size == 0:
+        return out
+    top = int(np.ceil(np.log2(max(float(px.mean.max()), 2.0)))) + 1
+    for k in range(1, top):
+        lo, hi = 2.0**k, 2.0 ** (k + 1)
+        sel = (px.mean >= lo) & (px.mean < hi)
+        if sel.sum() < min_pixels:
+            continue
+        part = px.where(sel)
+        for _ in range(2):
+            k2, _, scale, cov = _wls(part, two_terms=False)
+            fit = TemporalFit(k2, 0.0, float("nan"), float("nan"), False, "", 0, 0, (lo, hi))
+            keep = _plausible(part, fit)
+            if keep.all() or keep.sum() < min_pixels:
+                break
+            part = part.where(keep)
+        k2, _, scale, cov = _wls(part, two_terms=False)
+        se = float(np.sqrt(max(cov[0, 0], 0.0) * scale))
+        out.append(BinFit(lo, hi, k2, se, int(part.mean.size), int(part.n.sum())))
+    return out
+

@@ -69,6 +69,7 @@ from spikesim.noise import PaperNoise, PhysicalNoise
 from spikesim.sensor import RESET_MODES
 
 __all__ = [
+    "local_frac_term",
     "rate_theory",
     "frac_variance",
     "count_variance",
@@ -176,6 +177,23 @@ def frac_variance(mean, sd) -> np.ndarray:
         out = np.array(out, dtype=np.float64)
         out[noisy] = 1.0 / 6.0 - series.sum(axis=1)
     return np.clip(out, 0.0, 0.25)
+
+
+def local_frac_term(mean, sd) -> np.ndarray:
+    """Rounding term of the *local* interval variance ``E[(I[k+1] − I[k])²]/2``.
+
+    Clocked intervals are ``I[k] = τ[k] + u[k+1] − u[k]`` with ``u`` the wait from
+    a threshold crossing to the next readout; for cycles ``τ ~ N(mean, sd²)``
+    (readouts) and a uniform phase, averaging over the phase gives
+    ``E[(I[k+1] − I[k])²] = 2·Var(τ) + 2g(τ) + 2g(τ') − g(τ + τ')`` with
+    ``g(x) = frac(x)(1 − frac(x))`` (the phase-averaged bridge covariance
+    ``min(x, y) − xy`` equals ``(g(x) + g(y) − g(x − y))/2``), so the local
+    variance is ``Var(τ) + 2·F(mean, sd) − F(2·mean, √2·sd)/2`` with ``F``
+    :func:`frac_variance`.  Large noise: ``1/3 − 1/12 = 1/4`` (``F → 1/6``).
+    """
+    mean = _numbers(mean, "mean")
+    sd = _numbers(sd, "sd")
+    return 2 * frac_variance(mean, sd) - frac_variance(2 * mean, np.sqrt(2.0) * sd) / 2
 
 
 def cycle_cv2(noise) -> float:

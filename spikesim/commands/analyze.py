@@ -232,9 +232,6 @@ _CALIBRATE_OPTIONS = {
     "mismatch_split": "--mismatch-split", "full_scale_rate": "--full-scale-rate",
     "max_readouts": "--max-readouts", "check_seed": "--seed"}
 _PARAMETER = re.compile(r"(?<![\w.-])(" + "|".join(_CALIBRATE_OPTIONS) + r")\b")
-#: calibrate's error for a dark mask with no flat region detected outside it, renamed.
-_NO_FLAT_OUTSIDE = "--flat-masks=None is invalid: expected flat masks: none was given and "
-
 
 def _calibrate_error(exc):
     """A calibrate error naming the command line's options (``--flat-masks``,
@@ -242,10 +239,7 @@ def _calibrate_error(exc):
     ``temporal_threshold_noise``)."""
     text = _PARAMETER.sub(lambda m: _CALIBRATE_OPTIONS[m.group(1)], str(exc))
     text = re.sub(r"^(--[a-z-]+)\.shape=", r"\1 of shape ", text)  # --dark-mask of shape (4, 4)
-    if text.startswith(_NO_FLAT_OUTSIDE):  # "no flat region found outside --dark-mask (...)"
-        text = (text[len(_NO_FLAT_OUTSIDE):].replace(" was found", " found", 1)
-                + ": give --flat-masks to name the flat regions")
-    elif overlap := re.match(r"masks='(.*)' is invalid: expected (.*)", text):
+    if overlap := re.match(r"masks='(.*)' is invalid: expected (.*)", text):
         text = (f"the regions of --dark-mask and --flat-masks overlap ({overlap[1]}): "
                 f"expected {overlap[2]}")
     elif option := re.match(r"(--[a-z-]+)=", text):  # None: the option left out
@@ -259,6 +253,7 @@ def _run_calibrate(args) -> int:
     from spikesim.analysis.report import write_report
     from spikesim.commands._io_common import source_from_args
     from spikesim.errors import SpikeSimError
+    from spikesim.io.source import is_dat
 
     if not args.detect and args.dark_mask is None and args.flat_masks is None:
         raise SpikeSimValueError("--no-detect needs --flat-masks (and --dark-mask) to give "
@@ -274,8 +269,9 @@ def _run_calibrate(args) -> int:
             else args.mismatch_split, full_scale_rate=args.full_scale_rate,
             fit_charge_noise=args.charge_noise, max_readouts=args.max_readouts,
             check=args.check, check_seed=args.seed, reset=args.reset, progress=args.progress,
+            cfa=args.cfa if is_dat(args.capture) else None,  # HDF5 records its own
             option_names={"flat_levels": "--levels", "reset": "--reset",
-                          "full_scale_rate": "--full-scale-rate"})
+                          "full_scale_rate": "--full-scale-rate", "cfa": "--cfa"})
     except SpikeSimError as exc:  # name the options, not calibrate()'s parameters
         named = _calibrate_error(exc)
         if args.max_readouts is not None and str(named).startswith("capture length="):
