@@ -49,10 +49,11 @@ FAMILIES: dict[str, tuple[bool | None, bool | None, bool | None]] = {
     "charge": (None, None, True),
 }
 
-#: Seconds to compile each family into an empty cache (wall, one process, the
-#: project's 2-core reference VM; ``spikesim compile --measure`` re-measures,
-#: docs/performance.md has the table).
-COMPILE_SECONDS = {"noise-free": 20, "paper": 30, "physical": 45, "charge": 30}
+#: Seconds to compile each family into an empty cache (CPU seconds of one
+#: process, its start and imports included, on the project's 2-core VM;
+#: compilation runs on one core, so an idle machine takes about as long;
+#: ``spikesim compile --measure`` re-measures, docs/performance.md has the table).
+COMPILE_SECONDS = {"noise-free": 30, "paper": 40, "physical": 750, "charge": 55}
 
 _MARK = FAMILY_MARK_PREFIX + "{}.ok"  # beside numba's cache files: this family is in the cache
 _announced: set[str] = set()
