@@ -22,7 +22,7 @@ charge        physical noise drawn per readout: charge noise, or shot noise
 The first run of a family after an install (or after the package's compiled
 sources change) compiles it and says so once per process on stderr, with the
 time it took on the reference machine (:data:`COMPILE_SECONDS`) and where
-numba's cache lives; :func:`precompile` (``spikesim compile``) fills the cache
+numba's cache lives; :func:`spikesim.precompile.precompile` (``spikesim compile``) fills the cache
 ahead, e.g. for a cluster's shared ``NUMBA_CACHE_DIR``.
 """
 
@@ -31,15 +31,13 @@ from __future__ import annotations
 import os
 import sys
 import threading
-import time
-from collections.abc import Iterable
 from pathlib import Path
 
 from spikesim._numba_cache import FAMILY_MARK_PREFIX, cache_folder
 from spikesim.errors import bad_value
 
 __all__ = ["COMPILE_SECONDS", "FAMILIES", "announce_compile", "family_of", "family_markers",
-           "family_of_noise", "precompile"]
+           "family_of_noise", "is_compiled", "mark_compiled"]
 
 #: The families and their markers ``(paper, event, readout)`` for the kernel.
 FAMILIES: dict[str, tuple[bool | None, bool | None, bool | None]] = {
@@ -132,36 +130,3 @@ def mark_compiled(name: str) -> None:
         path.write_text("compiled\n")
     except OSError:  # a read-only install: numba's cache is read-only too
         pass
-
-
-def precompile(names: Iterable[str] | None = None, progress=None) -> dict[str, float]:
-    """Compile the kernels of families ``names`` (all when None) into numba's
-    cache by simulating a tiny sensor of each, moving and static, mono and
-    RGGB (the same argument types as any run, so later runs load them).
-    Returns seconds per family; ``progress(name, seconds)`` is called after each."""
-    import numpy as np
-
-    from spikesim import noise as noise_models
-    from spikesim.scenes import Static, procedural
-    from spikesim.sensor import Sensor
-    from spikesim.simulate import simulate
-
-    chosen = list(FAMILIES) if names is None else [n for n in names]
-    for name in chosen:
-        family_markers(name)  # validates
-    models = {"noise-free": None, "paper": noise_models.PaperNoise(sigma_g=5.0, sigma_p=1.0),
-              "physical": noise_models.PhysicalNoise(),
-              "charge": noise_models.PhysicalNoise(charge_noise_electrons=1.0)}
-    times = {}
-    for name in chosen:
-        t0 = time.perf_counter()
-        for cfa in ("RGGB", None):
-            sensor = Sensor(height=16, width=16, cfa=cfa, noise=models[name])
-            moving = procedural("astronaut", motion="pan", size=(16, 16))
-            static = Static(np.full((16, 16, 3), 0.5, np.float32))
-            for scene in (moving, static):
-                simulate(scene, sensor, n_readouts=8, seed=0, clean_twin=True)
-        times[name] = time.perf_counter() - t0
-        if progress is not None:
-            progress(name, times[name])
-    return times

@@ -261,7 +261,8 @@ class Trainer:
                                     start_step=st.step, rank=self.rank, world=self.world,
                                     clips=cfg.clips, clip_fraction=cfg.clip_fraction)
             if cfg.workers > 0:  # compiled here once, loaded by every worker from the cache
-                from spikesim.families import is_compiled, precompile
+                from spikesim.families import is_compiled
+                from spikesim.precompile import precompile
 
                 precompile([f for f in ("noise-free", "paper") if not is_compiled(f)])
             yield from self._loader(ds, batch_size=None)

@@ -12,7 +12,7 @@ import time
 _CHILD = """
 import json, resource, sys, time
 t0 = time.perf_counter()
-from spikesim.families import precompile
+from spikesim.precompile import precompile
 precompile([sys.argv[1]])
 usage = resource.getrusage(resource.RUSAGE_SELF)
 print(json.dumps({"seconds": time.perf_counter() - t0, "cpu_s": usage.ru_utime + usage.ru_stime,
@@ -40,7 +40,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from spikesim._numba_cache import cache_folder
-    from spikesim.families import FAMILIES, family_markers, precompile
+    from spikesim.families import FAMILIES, family_markers
+    from spikesim.precompile import precompile
 
     names = args.families or list(FAMILIES)
     for name in names:

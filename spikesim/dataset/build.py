@@ -223,7 +223,8 @@ def compile_first(tasks: list[dict]) -> list[str]:
     this process, before local workers start, so that they load the machine
     code from numba's cache rather than each compiling it at the same time.
     Returns the families compiled (none when all were cached)."""
-    from spikesim.families import family_of_noise, is_compiled, precompile
+    from spikesim.families import family_of_noise, is_compiled
+    from spikesim.precompile import precompile
     from spikesim.sensor import Sensor
 
     needed = {family_of_noise(Sensor.from_dict(t["sensor"]).noise) for t in tasks}
