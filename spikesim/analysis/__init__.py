@@ -10,10 +10,12 @@ is ``spikesim analyze ...`` (``docs/analysis.md``).
 
 Modules: ``theory`` (closed forms), ``capture`` (block-wise reading),
 ``sweep`` (flat fields), ``transfer``, ``isi``, ``snr``, ``quantization``,
-``budget``, ``regions``, ``calibration_config``, ``calibrate`` (steps in
-``calibrate_fit`` and ``temporal_fit``), ``fitcheck`` and ``gof_stats``
-(goodness of fit), ``accuracy`` and ``short_capture`` (the calibration on
-simulated captures), ``report``.
+``budget``, ``planes`` (colour planes, the colour test), ``regions`` and
+``calibration_regions`` (regions per plane), ``calibration_config``,
+``calibrate`` (steps in ``calibrate_fit``, ``temporal_fit`` and, without a
+flat region, ``natural_fit``), ``fitcheck``, ``gof_stats`` and ``gof_report``
+(goodness of fit), ``calibration_report``, ``accuracy``, ``short_capture`` and
+``natural_capture`` (the calibration on simulated captures), ``report``.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from spikesim.analysis.calibrate import CalibrationResult, calibrate
 from spikesim.analysis.calibration_config import CalibrationConfig
 from spikesim.analysis.capture import Capture, as_capture, pixel_counts, pixel_intervals
 from spikesim.analysis.isi import isi_statistics
+from spikesim.analysis.natural_capture import natural_capture
 from spikesim.analysis.quantization import quantization_study, saturation_recovery
 from spikesim.analysis.regions import detect_regions
 from spikesim.analysis.report import AnalysisResult, write_report
@@ -43,6 +46,7 @@ __all__ = [
     "calibration_accuracy",
     "detect_regions",
     "isi_statistics",
+    "natural_capture",
     "noise_budget",
     "noise_sources",
     "pixel_counts",

@@ -107,6 +107,37 @@ ODD_FACTOR = 1.44
 ODD_Z = 3.0
 
 
+def _fit_flat(rate, mom, n, reg, flat_levels, cfg, names, notes):
+    """The fit with flat regions (:func:`fit_parameters`), detected regions whose
+    spread is out of line left out (:func:`_inconsistent`, with a note; ``reg``
+    is updated); returns ``(params, diag, levels, hot, identified, scale_known)``."""
+    levels = reg.levels(flat_levels, names["flat_levels"])
+    if levels is not None and cfg.full_scale_rate is not None:
+        raise bad_value(names.get("full_scale_rate", "full_scale_rate"), cfg.full_scale_rate,
+                        f"None when {names['flat_levels']} are given (the radiances already "
+                        "set the scale)")
+    scale_known = levels is not None or cfg.full_scale_rate is not None
+    params, diag, lv, hot = fit_parameters(rate, mom, n, reg.dark, reg.flats, levels, cfg,
+                                           reg.names, reg.planes)
+    odd = _inconsistent(diag["region_spreads"]) if reg.detected is not False else []
+    if odd and len(odd) < len(reg.flats):  # moving or textured content: fit without it
+        notes.append(
+            "left out as moving or textured content: " + ", ".join(
+                f"{reg.names[i]} {describe_region(reg.flats[i], rate)}, response spread "
+                f"{np.sqrt(max(diag['region_spreads'][i][0], 0)):.3g}" for i in odd)
+            + f" (its spread exceeds the best-measured region's by more than {ODD_FACTOR:g}x "
+            f"in variance and {ODD_Z:g} standard errors; the chip's pattern is the same "
+            "everywhere, moving or textured content adds to it)")
+        keep = [i for i in range(len(reg.flats)) if i not in odd]
+        reg.flats, reg.planes = [reg.flats[i] for i in keep], [reg.planes[i] for i in keep]
+        reg.names, reg.source = [reg.names[i] for i in keep], [reg.source[i] for i in keep]
+        levels = None if levels is None else np.asarray(levels)[keep]
+        params, diag, lv, hot = fit_parameters(rate, mom, n, reg.dark, reg.flats, levels, cfg,
+                                               reg.names, reg.planes)
+    diag["region_spreads"] = [list(v) for v in diag["region_spreads"]]
+    return params, diag, lv, hot, diag.pop("identified"), scale_known
+
+
 def _inconsistent(spreads) -> list:
     """Indices of the flat regions whose response spread ``(CV², s.e.)`` is too high
     against the most precisely measured one's (:data:`ODD_FACTOR`, :data:`ODD_Z`):
@@ -217,32 +248,9 @@ def calibrate(capture, *, dark_mask=None, flat_masks=None, flat_levels=None,
         natural, lv, scale_known = (pools, steady, planes), np.zeros(0), \
             cfg.full_scale_rate is not None
     else:
-        levels = reg.levels(flat_levels, names["flat_levels"])
-        if levels is not None and cfg.full_scale_rate is not None:
-            raise bad_value(names.get("full_scale_rate", "full_scale_rate"),
-                            cfg.full_scale_rate, f"None when {names['flat_levels']} are given "
-                            "(the radiances already set the scale)")
-        scale_known = levels is not None or cfg.full_scale_rate is not None
-        params, diag, lv, hot = fit_parameters(rate, mom, n, dark, flats, levels, cfg,
-                                               reg.names, reg.planes)
-        odd = _inconsistent(diag["region_spreads"]) if detected is not False else []
-        if odd and len(odd) < len(flats):  # moving or textured content: fit without it
-            region_notes.append(
-                "left out as moving or textured content: " + ", ".join(
-                    f"{reg.names[i]} {describe_region(flats[i], rate)}, response spread "
-                    f"{np.sqrt(max(diag['region_spreads'][i][0], 0)):.3g}" for i in odd)
-                + f" (its spread exceeds the best-measured region's by more than {ODD_FACTOR:g}x "
-                f"in variance and {ODD_Z:g} standard errors; the chip's pattern is the same "
-                "everywhere, moving or textured content adds to it)")
-            keep = [i for i in range(len(flats)) if i not in odd]
-            flats = [flats[i] for i in keep]
-            reg.flats, reg.planes = flats, [reg.planes[i] for i in keep]
-            reg.names, reg.source = [reg.names[i] for i in keep], [reg.source[i] for i in keep]
-            levels = None if levels is None else np.asarray(levels)[keep]
-            params, diag, lv, hot = fit_parameters(rate, mom, n, dark, flats, levels, cfg,
-                                                   reg.names, reg.planes)
-        diag["region_spreads"] = [list(v) for v in diag["region_spreads"]]
-        identified = diag.pop("identified")
+        params, diag, lv, hot, identified, scale_known = _fit_flat(
+            rate, mom, n, reg, flat_levels, cfg, names, region_notes)
+        flats = reg.flats
     notes = region_notes + list(diag.pop("notes"))
     sensor = _sensor(cap, params, notes, reset)
     fit = None

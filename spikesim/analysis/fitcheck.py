@@ -123,8 +123,8 @@ def goodness_of_fit(cap, sensor, rate, dark, flats, levels, hot, n_readouts: int
 
     summary = summary_distances(c_rate, s_rate, m_cap, m_sim, dark, flats)
     big = regions[-1][1] if not flats else max(flats, key=lambda f: int(f.sum()))
-    curves = {"rates": (c_rate[big], s_rate[big]), "rate_label": "pixel rate (spikes/readout), "
-              "largest flat region" if flats else "pixel rate (spikes/readout), dark region"}
+    curves = {"rates": (c_rate[big], s_rate[big]),
+              "rate_label": "rate, largest flat region" if flats else "rate, dark region"}
     return {"n_readouts": n_readouts, "fpn_seed": sim_sensor.noise.fpn_seed, "seed": seed,
             "regions": out, "summary": summary, "headers": headers, "rows": rows, "plot": plot,
             "curves": curves}
@@ -167,13 +167,12 @@ def natural_goodness_of_fit(cap, sensor, dark, pools, steady, planes, n_readouts
     m_sim = pixel_intervals(sim, 0, n_readouts)
     summary = pool_distances(c_rate, s_rate, c_scene, s_scene, pools.label, m_cap, m_sim, steady)
     labels, sizes = np.unique(pools.label[pools.label > 0], return_counts=True)
-    curves = {"rates": (np.zeros(0), np.zeros(0)), "rate_label": "pixel rate / local scene"}
+    curves = {"rates": (np.zeros(0), np.zeros(0)), "rate_label": "rate / local scene"}
     if labels.size:
         at = pools.label == labels[np.argmax(sizes)]
         curves["rates"] = (c_rate[at] / np.maximum(c_scene[at], 1e-12),
                            s_rate[at] / np.maximum(s_scene[at], 1e-12))
-        curves["rate_label"] = (f"pixel rate / local scene, largest pool (~"
-                                f"{float(np.mean(c_scene[at])):.3g} spikes/readout)")
+        curves["rate_label"] = f"rate / local scene, pool at {float(np.mean(c_scene[at])):.2g}"
     return {"n_readouts": n_readouts, "fpn_seed": sim_sensor.noise.fpn_seed, "seed": seed,
             "summary": summary, "curves": curves, "pools": int(labels.size),
             "pool_pixels": int(sizes.sum()) if sizes.size else 0,

@@ -331,8 +331,8 @@ def fit_natural(rate, mom, counts, n_readouts: int, dark, planes, config):
         why = "not identified: the capture has no dark region"
         identified.update(dark_current_rel=why, dark_current_spread=why,
                           hot_pixel_fraction=why, hot_pixel_dark_rel=why)
-        notes.append(f"no dark region: dark current {why.split(': ')[1]}; it, its spread and "
-                     "the hot pixels are held at the package defaults")
+        notes.append("no dark region: the dark current, its spread and the hot pixels are "
+                     "not identified and held at the package defaults")
     elif not spread_known:
         identified["dark_current_spread"] = ("not identified: the dark current is too weak "
                                              "for this capture length (counting noise "

@@ -49,10 +49,14 @@ inflates the plain variance by the variance of the pixel's mean interval
 over the capture.
 
 **Outliers.**  A pixel whose interval variance exceeds the 0.999 quantile
-(:data:`OUTLIER_P`) of its law under the fitted model (``V·χ²(n − 1)/(n −
-1)``, ``n`` its intervals) is left out and the fit repeated (twice at most;
-the note counts them): a few pixels of moving content or edges in a region
-would otherwise dominate κ², their variance being many times the model's.
+(:data:`OUTLIER_P`) of its law under the model (``V·χ²(n − 1)/(n − 1)``, ``n``
+its intervals) is left out: first under a robust start, κ² per octave of mean
+interval from the median of the pixels' own estimates (:func:`_robust_keep`),
+then under the fit, which
+is repeated (twice at most; the note counts them): a few pixels of moving
+content or edges in a region would otherwise dominate κ², their variance
+being many times the model's — and, when κ² is small, pull the least-squares
+fit up far enough to look plausible themselves.
 
 **Diffusion.**  Where a pixel's drift ``q = 1/m`` is below ``10·σ_q²`` (the
 dark: its charge, held at zero, crosses by diffusion, and the random walk's
@@ -231,7 +235,12 @@ def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0
         raise bad_value("capture length", f"no pixel with >= {min_n} intervals of >= "
                         f"{min_mean:g} readouts", "a longer capture, or flat regions of "
                         f"<= {1 / min_mean:g} spikes per readout, to measure temporal noise")
-    fit = _fit(px, fit_charge_noise)
+    keep = _robust_keep(px)
+    outliers = 0
+    if not keep.all() and keep.sum() >= 3:
+        outliers = int((~keep).sum())
+        px = px.where(keep)
+    fit = dataclasses.replace(_fit(px, fit_charge_noise), outliers=outliers)
     for _ in range(2):  # leave out pixels whose variance the model cannot have, and fit again
         keep = _plausible(px, fit)
         if keep.all() or keep.sum() < 3:
@@ -253,6 +262,33 @@ def fit_temporal(mom, mask, fit_charge_noise: bool = True, min_mean: float = 5.0
                     f" ({left} pixel{'s' if left != 1 else ''} whose drift is below "
                     f"{DIFFUSION_DRIFT:g}·σ_q² left out: they fire by diffusion)"))
     return fit
+
+
+def _robust_keep(px: _Pixels) -> np.ndarray:
+    """The pixels plausible under a robust start: per octave of mean interval,
+    κ² from the median over its pixels of ``(v_i/c_i − F_i)/m_i²`` (three
+    fixed-point rounds of the rounding term ``F``; ``c_i = (1 − 2/(9·(n_i −
+    1)))³`` the median of a sample variance over its mean, Wilson–Hilferty),
+    then the :data:`OUTLIER_P` test.  A few pixels of moving content, whose
+    variance is many times the others', do not move a median, so the test
+    finds them (the least-squares fit, which they pull up, makes them look
+    plausible when κ² is small); per octave, so that a CV² growing with the
+    interval (charge noise) is no outlier."""
+    from scipy.stats import chi2
+
+    dof = np.maximum(px.n - 1, 1)
+    corr = (1 - 2 / (9 * dof)) ** 3
+    octave = np.floor(np.log2(np.maximum(px.mean, 1.0))).astype(int)
+    model = np.empty(px.mean.size)
+    for o in np.unique(octave):
+        at = octave == o
+        m, v = px.mean[at], px.var[at]
+        k2 = 0.0
+        for _ in range(3):
+            f = px.where(at).rounding(np.sqrt(k2) * m)
+            k2 = max(float(np.median((v / corr[at] - f) / m**2)), 0.0)
+        model[at] = k2 * m**2 + px.where(at).rounding(np.sqrt(k2) * m)
+    return px.var <= model * chi2.ppf(OUTLIER_P, dof) / dof
 
 
 def _plausible(px: _Pixels, fit: TemporalFit) -> np.ndarray:
@@ -346,6 +382,9 @@ def kappa2_by_bin(mom, mask, local: bool = True, min_pixels: int = 30,
         if sel.sum() < min_pixels:
             continue
         part = px.where(sel)
+        keep = _robust_keep(part)
+        if not keep.all() and keep.sum() >= min_pixels:
+            part = part.where(keep)
         for _ in range(2):
             k2, _, scale, cov = _wls(part, two_terms=False)
             fit = TemporalFit(k2, 0.0, float("nan"), float("nan"), False, "", 0, 0, (lo, hi))

@@ -1,7 +1,8 @@
 """``spikesim analyze STUDY``: noise studies written as a Markdown/JSON/PNG report.
 
 Studies: ``transfer``, ``isi``, ``snr``, ``quantization``, ``budget``,
-``calibrate`` (fit a sensor to a capture), ``calibration-accuracy`` (the
+``calibrate`` (fit a sensor to a capture, mono or colour, with or without flat
+regions), ``calibration-accuracy`` (the
 calibration proven on simulated captures) and ``calibration-short`` (short
 moving captures: calibrated against default re-simulation).  The work is done by
 :mod:`spikesim.analysis`; this module only parses and prints.
@@ -101,7 +102,14 @@ def register(subparsers) -> None:
     s.add_argument("--centers", type=int, default=4, help="readouts reconstructed")
     s.set_defaults(func=_run_budget)
 
-    s = sub.add_parser("calibrate", help="fit the physical noise model to a capture")
+    s = sub.add_parser(
+        "calibrate", help="fit the physical noise model to a capture",
+        description="Fit the physical noise model to a capture: from its flat regions, or "
+                    "without one from per-pixel temporal statistics and spatial residuals; "
+                    "a colour capture plane by plane (an HDF5 file records its colour filter, "
+                    "a .dat needs --cfa: a colour .dat without it is refused).  Writes "
+                    "calibration.md/.json/.png (parameters with their status, the calibrated "
+                    "and default re-simulations side by side) and sensor.json.")
     s.add_argument("capture", help="a .dat capture, or a spikesim .h5 file or folder")
     s.add_argument("--out", required=True)
     s.add_argument("--dark-mask", default=None, help=".npy (H, W) bool mask of dark pixels")

@@ -21,7 +21,7 @@ tolerance or reported as not identified:
 * cycle CV² κ² (so E, σ_t held): 30 % with a flat region (a bright sky fires
   every 3-6 readouts, where the clock's rounding is most of the variance:
   measured -24 % to +13 % on RGGB at 0.2), 50 % without one (moving light
-  adds: measured -7 % to +41 %, the most on RGGB at 0.03), or not identified;
+  adds: measured -8 % to +39 %, the most on RGGB at 0.03), or not identified;
 * charge noise (none on this chip), dark current, its spread and the hot
   pixels (no dark region in the scene): not identified, package defaults kept.
 
