@@ -3,8 +3,6 @@ traceback, no crash) or the right result."""
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import subprocess
 import sys
@@ -16,30 +14,7 @@ import pytest
 import spikesim as ss
 from spikesim.errors import SpikeSimValueError
 from tests.support.dataset_helpers import write_frames
-from tests.support.fault_helpers import REPO, cli_env
-
-
-def _main(prog, argv):
-    if prog == "spikesim":
-        from spikesim.cli import main
-    else:
-        from spikejdd.cli import main
-    err, out = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
-        try:
-            code = main([str(a) for a in argv])
-        except SystemExit as exc:
-            code = exc.code
-    return code, err.getvalue(), out.getvalue()
-
-
-def _fails(prog, argv, *needles):
-    code, err, _ = _main(prog, argv)
-    assert code == 1 and "Traceback" not in err, err
-    line = [ln for ln in err.splitlines() if "error" in ln][-1]
-    for n in needles:
-        assert n in line, (n, line)
-    return line
+from tests.support.fault_helpers import REPO, cli_env, cli_fails, run_cli_here
 
 
 def _scene_sensor(n=16, m=20):
@@ -62,14 +37,14 @@ def test_electrons_per_threshold_on_the_command_lines(tmp_path, monkeypatch):
                   "physical", "--set", "noise.electrons_per_threshold=1e-30", "--out", "x.h5"],
                  ["analyze", "snr", "--sensor", "physical", "--set",
                   "noise.electrons_per_threshold=1e-30", "--out", "snr"]):
-        _fails("spikesim", argv, "electrons_per_threshold=1e-30", "[0.001, 1e+09]")
+        cli_fails("spikesim", argv, "electrons_per_threshold=1e-30", "[0.001, 1e+09]")
     (tmp_path / "m.toml").write_text(
         '[dataset]\nname = "e"\nsize = [16, 16]\nwindow = 20\n\n[sensor]\npreset = "ideal"\n\n'
         '[[noise]]\nmode = "physical"\n'
         'electrons_per_threshold = {loguniform = [1e-20, 1000]}\n\n'
         '[[sources]]\nkind = "procedural"\nscenes = ["astronaut"]\ncount = 1\n')
     for extra in (["--dry-run"], []):  # refused at load: before any plan, file or temporary
-        _fails("spikesim", ["dataset", "m.toml", "--out", "ds", *extra],
+        cli_fails("spikesim", ["dataset", "m.toml", "--out", "ds", *extra],
                "noise[0]: electrons_per_threshold=1e-20", "[0.001, 1e+09]")
         assert not (tmp_path / "ds").exists()
 
@@ -185,7 +160,7 @@ def test_video_options_dry_run_exits_1(tmp_path, monkeypatch):
     (tmp_path / "m.toml").write_text(
         '[dataset]\nname = "v"\nsize = [16, 16]\nwindow = 20\n\n[sensor]\npreset = "ideal"\n\n'
         '[[sources]]\nkind = "video"\npath = "clip"\nfps = 100.0\noptions = {wobble = 1}\n')
-    _fails("spikesim", ["dataset", "m.toml", "--out", "ds", "--dry-run"],
+    cli_fails("spikesim", ["dataset", "m.toml", "--out", "ds", "--dry-run"],
            "sources[0].options.wobble")
     assert not (tmp_path / "ds").exists()
 
@@ -212,7 +187,7 @@ def test_per_second_is_capped(tmp_path, per_second, needle):
     ["reconstruct", "x.h5", "--methods", "", "--out", "o"]])
 def test_empty_methods_is_an_error(tmp_path, monkeypatch, argv):
     monkeypatch.chdir(tmp_path)
-    _fails("spikejdd", argv, "--methods", "at least one method")
+    cli_fails("spikejdd", argv, "--methods", "at least one method")
 
 
 def test_relative_set_path_is_from_the_current_directory(tmp_path, monkeypatch):
@@ -293,10 +268,10 @@ def test_swapped_words_are_damage(tmp_path, monkeypatch, dataset, old, new):
     report = verify_file(bad)
     assert report["status"] == "damaged", report
     assert f"damaged data in its {dataset} (chunk 0, 0, 0" in report["problems"][0], report
-    code, err, out = _main("spikesim", ["verify", bad])
+    code, err, out = run_cli_here("spikesim", ["verify", bad])
     err += out
     assert code == 1 and "DAMAGED" in err and "1 damaged" in err and "CRC-32" in err, err
-    _fails("spikesim", ["convert", bad, "copy.h5"], "bad.h5", dataset, "CRC-32")
+    cli_fails("spikesim", ["convert", bad, "copy.h5"], "bad.h5", dataset, "CRC-32")
     assert not [p.name for p in tmp_path.iterdir() if "copy" in p.name]
     with open_h5(bad) as seq, pytest.raises(ss.errors.SpikeSimFormatError, match="CRC-32"):
         if dataset == "gt":
@@ -314,7 +289,7 @@ def test_version_1_files_still_read_and_verify_says_fletcher_only(tmp_path, monk
     report = verify_file(src)
     assert report["ok"] and report["format_version"] == 1 and report["checksums"] == "fletcher32"
     assert any("Fletcher-32 only" in n and "0xFFFF" in n for n in report["notes"]), report
-    code, err, out = _main("spikesim", ["verify", src])
+    code, err, out = run_cli_here("spikesim", ["verify", src])
     assert code == 0 and "Fletcher-32 only" in err + out, err + out
     with open_h5(src) as seq:
         np.testing.assert_array_equal(seq.read_packed(), packed)
@@ -322,7 +297,7 @@ def test_version_1_files_still_read_and_verify_says_fletcher_only(tmp_path, monk
     blind = _swap_word(src, tmp_path / "blind.h5", "spikes")
     assert verify_file(blind)["ok"]
     # a copy carries the chunk CRCs
-    code, err, _ = _main("spikesim", ["convert", src, "v2.h5"])
+    code, err, _ = run_cli_here("spikesim", ["convert", src, "v2.h5"])
     assert code == 0, err
     assert verify_file(tmp_path / "v2.h5")["checksums"] == "crc32+fletcher32"
     with open_h5(tmp_path / "v2.h5") as seq:

@@ -4,8 +4,6 @@ the other files of this folder."""
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import subprocess
 import warnings
@@ -15,30 +13,7 @@ import pytest
 
 import spikesim as ss
 from spikesim.errors import SpikeSimError, SpikeSimTypeError, SpikeSimValueError
-from tests.support.fault_helpers import cli_command, cli_env, full_only
-
-
-def _main(prog, argv):
-    if prog == "spikesim":
-        from spikesim.cli import main
-    else:
-        from spikejdd.cli import main
-    err, out = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
-        try:
-            code = main([str(a) for a in argv])
-        except SystemExit as exc:
-            code = exc.code
-    return code, err.getvalue(), out.getvalue()
-
-
-def _fails(prog, argv, *needles):
-    code, err, _ = _main(prog, argv)
-    assert code == 1 and "Traceback" not in err, err
-    line = [ln for ln in err.splitlines() if "error" in ln][-1]
-    for n in needles:
-        assert n in line, (n, line)
-    return line
+from tests.support.fault_helpers import cli_command, cli_env, cli_fails, full_only, run_cli_here
 
 
 @pytest.fixture()
@@ -49,25 +24,25 @@ def h5(h5_original, tmp_path, monkeypatch):
 
 # --- item 6: tracebacks that are now one line -----------------------------------------
 def test_preview_fps_zero(h5):
-    _fails("spikesim", ["preview", h5, "--out", "x.gif", "--fps", "0"], "--fps")
+    cli_fails("spikesim", ["preview", h5, "--out", "x.gif", "--fps", "0"], "--fps")
 
 
 def test_non_utf8_manifest(tmp_path, h5):
     bad = tmp_path / "m.toml"
     bad.write_bytes(b"[dataset]\nname = \"\xff\xfe\"\n")
-    _fails("spikesim", ["dataset", bad, "--out", "ds"], "UTF-8")
+    cli_fails("spikesim", ["dataset", bad, "--out", "ds"], "UTF-8")
 
 
 def test_dataset_out_is_an_existing_file(tmp_path, h5):
     (tmp_path / "f").write_text("x")
-    _fails("spikesim", ["dataset", "builtin:demo", "--out", tmp_path / "f", "--limit", "1"],
+    cli_fails("spikesim", ["dataset", "builtin:demo", "--out", tmp_path / "f", "--limit", "1"],
            "existing file")
 
 
 @full_only
 def test_unreachable_scheduler(tmp_path, h5):
     pytest.importorskip("distributed")
-    _fails("spikesim", ["dataset", "builtin:demo", "--out", "ds", "--limit", "1",
+    cli_fails("spikesim", ["dataset", "builtin:demo", "--out", "ds", "--limit", "1",
                         "--scheduler", "tcp://127.0.0.1:1"], "Dask scheduler")
     assert not (tmp_path / "ds").exists()  # refused before anything is written
 
@@ -80,7 +55,7 @@ def test_unreachable_scheduler(tmp_path, h5):
     (["--workers", "2", "--dask-local", "2", "--dry-run"], "--workers=2"),
 ])
 def test_dataset_refuses_two_executors(tmp_path, h5, extra, needle):
-    _fails("spikesim", ["dataset", "builtin:demo", "--out", "ds", "--limit", "1", *extra],
+    cli_fails("spikesim", ["dataset", "builtin:demo", "--out", "ds", "--limit", "1", *extra],
            needle)
     assert not (tmp_path / "ds").exists()
 
@@ -89,23 +64,23 @@ def test_dataset_refuses_two_executors(tmp_path, h5, extra, needle):
                                       (str(10**15), "--readouts"),
                                       (str(10**11), "GiB free")])
 def test_simulate_absurd_readouts(tmp_path, h5, n, needle):
-    _fails("spikesim", ["simulate", "astronaut", "--readouts", n, "--out", "x.h5"], needle)
+    cli_fails("spikesim", ["simulate", "astronaut", "--readouts", n, "--out", "x.h5"], needle)
     assert not list(tmp_path.glob("*x.h5*"))
 
 
 def test_reconstruct_bad_centers_and_device(h5):
     pytest.importorskip("torch")
-    _fails("spikejdd", ["reconstruct", h5, "--method", "tfp+bilinear", "--out", "r",
+    cli_fails("spikejdd", ["reconstruct", h5, "--method", "tfp+bilinear", "--out", "r",
                         "--centers", "abc"], "--centers")
-    _fails("spikejdd", ["reconstruct", h5, "--out", "r", "--device", "cuda:7"], "--device")
+    cli_fails("spikejdd", ["reconstruct", h5, "--out", "r", "--device", "cuda:7"], "--device")
 
 
 def test_train_unknown_model_field_and_bad_config(tmp_path, h5):
     pytest.importorskip("torch")
-    _fails("spikejdd", ["train", "--data", h5, "--steps", "1", "--model", "lite", "--set",
+    cli_fails("spikejdd", ["train", "--data", h5, "--steps", "1", "--model", "lite", "--set",
                         "nosuch=3", "--out", "run", "--quiet"], "nosuch")
     (tmp_path / "bad.json").write_text("{not json")
-    _fails("spikejdd", ["train", "--config", tmp_path / "bad.json"], "--config")
+    cli_fails("spikejdd", ["train", "--config", tmp_path / "bad.json"], "--config")
 
 
 def test_info_into_a_closed_pipe(h5):
@@ -127,11 +102,11 @@ def test_debug_shows_the_traceback(h5):
 
 # --- item 10: nonsense that used to be accepted ---------------------------------------
 def test_nonsense_options_are_refused(tmp_path, h5):
-    _fails("spikesim", ["info", h5, "--stats-readouts", "-1"], "--stats-readouts")
-    _fails("spikesim", ["simulate", "astronaut", "--fps", "-5", "--readouts", "10",
+    cli_fails("spikesim", ["info", h5, "--stats-readouts", "-1"], "--stats-readouts")
+    cli_fails("spikesim", ["simulate", "astronaut", "--fps", "-5", "--readouts", "10",
                         "--out", "x.h5"], "--fps")
-    _fails("spikesim", ["convert", h5, "x.txt"], "DST")
-    _fails("spikesim", ["preview", h5, "--out", "p.png", "--window", "100000"], "--window")
+    cli_fails("spikesim", ["convert", h5, "x.txt"], "DST")
+    cli_fails("spikesim", ["preview", h5, "--out", "p.png", "--window", "100000"], "--window")
     assert not [p for p in tmp_path.iterdir() if p.name != "orig.h5"]
 
 
@@ -178,7 +153,7 @@ def test_runaway_key_frames_warn_and_the_cli_asks_for_force(tmp_path, h5):
         warnings.simplefilter("error")  # a normal request: no warning
         ss.simulate_chunks(ss.scenes.procedural("astronaut", motion="pan", size=(8, 8)),
                            ss.Sensor(height=8, width=8), 400)
-    line = _fails("spikesim", ["simulate", "flicker", "--size", "8x8", "--readouts", "200000",
+    line = cli_fails("spikesim", ["simulate", "flicker", "--size", "8x8", "--readouts", "200000",
                                "--out", "f.h5"], "key frames", "--force")
     assert "flicker" in line
 
@@ -199,7 +174,7 @@ def test_errors_are_spikesim_errors_in_the_library(h5):
     ("spikejdd", ["reconstruct"]),
 ])
 def test_usage_errors_are_one_line(prog, argv):
-    code, err, _ = _main(prog, argv)
+    code, err, _ = run_cli_here(prog, argv)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--help" in err, err
 
 
@@ -208,11 +183,13 @@ def test_verify_checks_dat_lengths_at_the_given_size(tmp_path):
     ss.io.write_dat(tmp_path / "a.dat", spikes)
     whole = (tmp_path / "a.dat").read_bytes()
     (tmp_path / "t.dat").write_bytes(whole[:-100])
-    assert _main("spikesim", ["verify", tmp_path / "a.dat", "--height", 64, "--width", 64])[0] == 0
-    code, _, out = _main("spikesim", ["verify", tmp_path / "t.dat", "--height", 64,
+    assert run_cli_here("spikesim", ["verify", tmp_path / "a.dat", "--height", 64,
+                                     "--width", 64])[0] == 0
+    code, _, out = run_cli_here("spikesim", ["verify", tmp_path / "t.dat", "--height", 64,
                                       "--width", 64])
     assert code == 1 and "DAMAGED" in out and "64x64" in out  # truncated, at the size given
-    code, _, out = _main("spikesim", ["verify", tmp_path / "a.dat"])  # 64x64 is no known size
+    # 64x64 is no known size
+    code, _, out = run_cli_here("spikesim", ["verify", tmp_path / "a.dat"])
     assert code == 3 and "--height" in out  # not checked: not "all verified"
-    code, err, _ = _main("spikesim", ["verify", tmp_path / "a.dat", "--height", 64])
+    code, err, _ = run_cli_here("spikesim", ["verify", tmp_path / "a.dat", "--height", 64])
     assert code == 2 and "--width" in err  # a usage error: 1 would read as damage

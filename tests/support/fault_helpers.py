@@ -109,3 +109,32 @@ def alive(pid: int) -> bool:
     except OSError:
         return False
     return state != "Z"
+
+
+def run_cli_here(prog, argv):
+    """``(exit code, stderr, stdout)`` of ``spikesim``/``spikejdd`` ``argv`` run in this process."""
+    import contextlib
+    import io
+
+    if prog == "spikesim":
+        from spikesim.cli import main
+    else:
+        from spikejdd.cli import main
+    err, out = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+        try:
+            code = main([str(a) for a in argv])
+        except SystemExit as exc:
+            code = exc.code
+    return code, err.getvalue(), out.getvalue()
+
+
+def cli_fails(prog, argv, *needles):
+    """Run ``argv``: it must exit 1 with a one-line error (no traceback) holding ``needles``;
+    returns that line."""
+    code, err, _ = run_cli_here(prog, argv)
+    assert code == 1 and "Traceback" not in err, err
+    line = [ln for ln in err.splitlines() if "error" in ln][-1]
+    for n in needles:
+        assert n in line, (n, line)
+    return line
