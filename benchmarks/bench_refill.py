@@ -32,7 +32,7 @@ def _passes(masks, electrons, ev, wf, wu, jitter, passes):
     for _ in range(passes):
         for i in range(masks.shape[0]):
             ev[E.CYCLE, i & 63] += 1.0  # a new cycle, so new draws
-            E._PACKED_M1(masks[i], electrons, ev, jitter, wf, wu)
+            E._PACKED_M(masks[i], electrons, ev, jitter, wf, wu)
 
 
 def _aligned_zeros(rows, dtype=np.float64):

@@ -483,7 +483,7 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
     is 0 and every charge < 1 θ, where the three reset modes reduce to a
     carry (modulo and subtract: keep the fraction; zero: clear it).
     ``model.loss``: the charge loss at reset (its flags in ``ev[AFTER_RESET]``);
-    the event sampler's models take :func:`_event_block` instead.  ``paper``,
+    the event sampler's models take :func:`_make_event_block`'s instead.  ``paper``,
     ``readout``: the kernel family (:func:`simulate_chunk`).
     """
     prefer_wide_vectors()  # the per-readout steps' loops of hashes vectorise (1.2–1.3×)
@@ -575,12 +575,13 @@ def _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out,
 
 
 @njit(inline="always", **_opts)
-def _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words):
+def _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words,
+                reset):
     """:func:`_block_runs` for the event sampler (``model.event``; same
-    arguments, the rows set up).  Without charge loss, each run's charge is
-    made linear on its grid (:func:`spikesim._event.linear_charge`; a ramp
-    too steep for that form takes the per-readout step) and the
-    run walked from firing to firing where every sum is exact
+    arguments, the rows set up; ``reset`` the model's reset, a constant).
+    Without charge loss, each run's charge is made linear on its grid
+    (:func:`spikesim._event.linear_charge`; a ramp too steep for that form
+    takes the per-readout step) and the run walked from firing to firing where every sum is exact
     (:func:`spikesim._event.event_direct`; a changing charge from
     :data:`spikesim._event.MOVING_WALK_MIN` readouts on), else it takes the
     readout loop with its cache (:func:`_event_run`).  With charge loss, and
@@ -592,7 +593,6 @@ def _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratc
     ev_f = scratch_f[_EV_F0:]
     ev_u = scratch_u[_EV_U0:]
     blk = x0 // BLOCK
-    reset = model.reset
     pix0 = np.uint64(y * width + x0)
     event_cache_clear(ev_f, ev_u, width - x0)
     for r in range(runs.kind.shape[0]):
@@ -629,8 +629,8 @@ def _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratc
         n = n0
         while n < n1:  # waits in registers, firings from the cache
             k, bad = _event_run(ev, lam_first if not moving else lam, dlam, electrons, ev_f,
-                                ev_u, m0 + (n - n0), out, t_off, y, n, blk, n1 - n,
-                                reset == RESET_ZERO, not moving)
+                                ev_u, m0 + (n - n0), out, t_off, y, n, blk, n1 - n, reset,
+                                not moving)
             n += np.int64(k)
             if bad != 0:
                 event_settle(bad, electrons, ev, reset, model.jitter, model.ev_keys, pix0, ev_f,
@@ -673,30 +673,50 @@ def _run_block(hold, frames, y, x0, width, t_off, runs, model, frac, whole, out,
     where the chunk is one ``hold`` and the model noise-free, else (or where it
     declines) :func:`_block_runs` (same arguments)."""
     if event is not None and model.event:
-        _event_block(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev,
-                     words)
+        args = (frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words)
+        if event == RESET_MODULO:
+            _EVENT_BLOCK_MODULO(*args)
+        elif event == RESET_SUBTRACT:
+            _EVENT_BLOCK_SUBTRACT(*args)
+        else:
+            _EVENT_BLOCK_ZERO(*args)
     elif not (hold and model.fast_ok and _hold_block(frames, y, x0, t_off, runs, model, frac,
                                                      whole, out, scratch_f[2], scratch_u)):
         _block_runs(frames, y, x0, width, t_off, runs, model, frac, whole, out, scratch_f,
                     scratch_u, ev, words, paper, readout)
 
 
-@njit(**_inner)
-def _event_block(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words):
+def _make_event_block(reset):
     """:func:`_block_runs` for the event sampler (``model.event``; same
-    arguments): the block's rows set up, then :func:`_event_runs`.  Called
-    from the entry point directly: a function numba caches carries the
-    machine code of all it calls, so each level of calls between the entry
-    point and the event sampler compiled the sampler once more."""
-    prefer_wide_vectors()  # the per-readout steps' loops of hashes vectorise (1.2–1.3×)
-    if x0 < 0 or y < 0:  # never: it proves the indices non-negative, so the lane
-        return  # loops index without wrap-around checks and vectorise (1.4× per block)
-    _charge_rows(model, y, x0, scratch_f[10], scratch_f[11])
-    _noise_rows(model, y, x0, scratch_f[12], scratch_f[13])  # (it reads the electrons)
-    _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev, words)
+    arguments) compiled for one reset mode (``RESET_*``, a constant here, so
+    that only its own walks and refills are compiled): the block's rows set
+    up, then :func:`_event_runs`.  A function of its own called from the
+    entry point directly: a function numba caches carries the machine code of
+    all it calls and optimises it again, so each level of calls between the
+    entry point and the event sampler's pieces cost a compilation of them;
+    inlined into the entry point instead, the physical family compiled 25 %
+    longer."""
+
+    @njit(**_inner)
+    def event_block(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev,
+                    words):
+        prefer_wide_vectors()  # the per-readout steps' loops of hashes vectorise (1.2–1.3×)
+        if x0 < 0 or y < 0:  # never: it proves the indices non-negative, so the lane
+            return  # loops index without wrap-around checks and vectorise (1.4× per block)
+        _charge_rows(model, y, x0, scratch_f[10], scratch_f[11])
+        _noise_rows(model, y, x0, scratch_f[12], scratch_f[13])  # (it reads the electrons)
+        _event_runs(frames, y, x0, width, t_off, runs, model, out, scratch_f, scratch_u, ev,
+                    words, reset)
+
+    return event_block
+
+
+_EVENT_BLOCK_MODULO, _EVENT_BLOCK_SUBTRACT, _EVENT_BLOCK_ZERO = (
+    _make_event_block(reset) for reset in (RESET_MODULO, RESET_SUBTRACT, RESET_ZERO))
+
 
 @njit(inline="always", **_opts)
-def _event_run(ev, lam, dlam, electrons, ev_f, ev_u, m, out, t_off, y, n, blk, count, zero,
+def _event_run(ev, lam, dlam, electrons, ev_f, ev_u, m, out, t_off, y, n, blk, count, reset,
                static):
     """Up to ``count`` readouts from ``n`` (``m`` readouts after its segment's
     reference) of a run of linear charge (``lam``, ``dlam``:
@@ -707,10 +727,11 @@ def _event_run(ev, lam, dlam, electrons, ev_f, ev_u, m, out, t_off, y, n, blk, c
     first, stride, nbytes = _word_at(out, n - t_off, y, blk)
     args = (ev[EV_WAIT], lam, dlam, electrons, ev_f[GNEXT], ev_f[WMIN], m, LAMBDA_MAX,
             -BACKLOG_MAX, out, first, stride, nbytes, count)
-    if zero and static:
-        k, bad, used = event_cached_run64_zero_static(*args)
-    elif zero:
-        k, bad, used = event_cached_run64_zero(*args)
+    if reset == RESET_ZERO:  # (a constant: only one reset mode's loops are compiled)
+        if static:
+            k, bad, used = event_cached_run64_zero_static(*args)
+        else:
+            k, bad, used = event_cached_run64_zero(*args)
     elif static:
         k, bad, used = event_cached_run64_static(*args)
     else:
@@ -800,16 +821,18 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
         Advance the noise-free twin (``twin_model``, ``twin_state``, written to
         ``twin_out``) in the same pass, from the same initial accumulator; when
         false those are placeholders of the same types.
-    paper, event, readout : None or True
+    paper, event, readout : None, True or a reset code
         The kernel family (:mod:`spikesim.families`): which noise code is
-        compiled.  ``None`` leaves a path out of the machine code altogether
-        (numba prunes a branch on ``arg is None`` before typing it); ``True``
-        compiles it, and the model's values then decide at run time as before.
-        ``paper``: paper-mode noise (its vector fast path and the per-readout
-        deviates); ``event``: shot noise drawn per spike (``spikesim._event``);
-        ``readout``: physical noise drawn per readout (shot noise of the
-        reference sampler, charge noise, threshold jitter, charge loss).  The
-        noise-free paths are always compiled (the clean twin takes them).
+        compiled, constants of the entry point (:func:`simulate_rows`), so
+        numba prunes a branch they rule out before typing it.  ``None`` leaves
+        a path out of the machine code altogether; otherwise it is compiled and
+        the model's values decide at run time.  ``paper`` (True): paper-mode
+        noise (its vector fast path and the per-readout deviates); ``event``
+        (the model's ``RESET_*`` code): shot noise drawn per spike
+        (``spikesim._event``) for that reset mode only; ``readout`` (True):
+        physical noise drawn per readout (shot noise of the reference sampler,
+        charge noise, threshold jitter, charge loss).  The noise-free paths
+        are always compiled (the clean twin takes them).
     """
     height = frames.shape[0]
     rows = max(1, min(8, height // 64))  # rows per group: at least 64 groups when H ≥ 64
@@ -817,13 +840,13 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
     threads = numba.get_num_threads()
     parts = 1 if threads == 1 else min(groups, 4 * threads)
     args = (rows, frames, np.int64(width), np.int64(t_off), runs, model, state, out,
-            np.int64(init), bool(keep), bool(twin), twin_model, twin_state, twin_out, paper,
-            event, readout)
+            np.int64(init), bool(keep), bool(twin), twin_model, twin_state, twin_out)
+    kernel = simulate_rows(paper, event, readout)
     if parts == 1:
-        simulate_rows(np.int64(0), np.int64(1), *args)
+        kernel(np.int64(0), np.int64(1), *args)
         return
     list(_thread_pool(threads).map(
-        lambda k: simulate_rows(np.int64(k), np.int64(parts), *args), range(parts)))
+        lambda k: kernel(np.int64(k), np.int64(parts), *args), range(parts)))
 
 
 _POOL: list = [None, 0, 0]  # the pool, its size and the process that made it
@@ -843,27 +866,46 @@ def _thread_pool(threads: int) -> ThreadPoolExecutor:
         return _POOL[0]
 
 
-@njit(nogil=True, **_opts)
-def simulate_rows(part, parts, rows, frames, width, t_off, runs, model, state, out, init, keep,
-                  twin, twin_model, twin_state, twin_out, paper, event, readout):
-    """The row groups ``part, part + parts, …`` (``rows`` rows each) of
-    :func:`simulate_chunk` (same other arguments), with the call's work rows.
-    The compiled entry point of a kernel family (``paper``, ``event``,
-    ``readout``); it releases the GIL."""
-    height = frames.shape[0]
-    scratch_f = _aligned_rows(SCRATCH_F, np.float64)
-    scratch_u = _aligned_rows(SCRATCH_U, np.uint64)
-    ev = _aligned_rows(4, np.float64)  # a block's event state
-    ev[:] = 0.0
-    f = np.empty(BLOCK, np.uint64)  # a block's accumulator
-    w = np.empty(BLOCK, np.int64)
-    f0 = np.empty(BLOCK, np.uint64)  # its initial fraction, for the twin
-    words = np.empty(max(1, runs.stop[-1] - runs.start[0]), np.uint64)  # a run's spikes
-    for group in range(part, (height + rows - 1) // rows, parts):
-        for y in range(group * rows, min(height, group * rows + rows)):
-            _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init,
-                          keep, twin, twin_model, twin_state, twin_out, scratch_f, scratch_u,
-                          ev, f, w, f0, words, paper, event, readout)
+def _make_rows_kernel(paper, event, readout):
+    """:func:`simulate_rows` of one kernel family: ``paper``, ``event`` and
+    ``readout`` are constants of the compiled function, so numba prunes the
+    branches they rule out before typing them."""
+
+    @njit(nogil=True, **_opts)
+    def rows_kernel(part, parts, rows, frames, width, t_off, runs, model, state, out, init, keep,
+                    twin, twin_model, twin_state, twin_out):
+        height = frames.shape[0]
+        scratch_f = _aligned_rows(SCRATCH_F, np.float64)
+        scratch_u = _aligned_rows(SCRATCH_U, np.uint64)
+        ev = _aligned_rows(4, np.float64)  # a block's event state
+        ev[:] = 0.0
+        f = np.empty(BLOCK, np.uint64)  # a block's accumulator
+        w = np.empty(BLOCK, np.int64)
+        f0 = np.empty(BLOCK, np.uint64)  # its initial fraction, for the twin
+        words = np.empty(max(1, runs.stop[-1] - runs.start[0]), np.uint64)  # a run's spikes
+        for group in range(part, (height + rows - 1) // rows, parts):
+            for y in range(group * rows, min(height, group * rows + rows)):
+                _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init,
+                              keep, twin, twin_model, twin_state, twin_out, scratch_f,
+                              scratch_u, ev, f, w, f0, words, paper, event, readout)
+
+    return rows_kernel
+
+
+_ROWS_KERNELS: dict = {}
+
+
+def simulate_rows(paper, event, readout):
+    """The compiled entry point of a kernel family (made once per process):
+    it takes the row groups ``part, part + parts, …`` (``rows`` rows each) of
+    :func:`simulate_chunk` (its other arguments but the markers), with the
+    call's work rows, and releases the GIL."""
+    key = (paper, event, readout)
+    kernel = _ROWS_KERNELS.get(key)
+    if kernel is None:
+        with _POOL_LOCK:
+            kernel = _ROWS_KERNELS.setdefault(key, _make_rows_kernel(*key))
+    return kernel
 
 
 @njit(inline="always", **_opts)
@@ -920,7 +962,7 @@ def _simulate_row(y, frames, width, t_off, runs, model, state, out, init, keep,
             else:
                 _load_state(twin_state.frac, twin_state.whole, y, x0, f, w)
             _run_block(hold, frames, y, x0, width, t_off, runs, twin_model, f, w, twin_out,
-                       scratch_f, scratch_u, ev, words, paper, event, readout)
+                       scratch_f, scratch_u, ev, words, paper, None, readout)  # (never event)
             if keep:
                 _store_state(twin_state.frac, twin_state.whole, y, x0, f, w)
 

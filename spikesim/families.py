@@ -3,10 +3,11 @@
 numba compiles a function with everything it may call, so one kernel holding
 every noise model made the first noise-free run after an install compile the
 physical-noise samplers too (minutes).  The kernel instead takes three
-markers, ``paper``, ``event`` and ``readout`` (``spikesim._kernels.simulate_rows``):
-``None`` leaves that code out of the machine code, ``True`` compiles it.  A
-*family* is one choice of markers, picked in Python from the noise model before
-the call, and numba caches each family's machine code on its own:
+markers, ``paper``, ``event`` and ``readout``, constants of its compiled entry
+point (``spikesim._kernels.simulate_rows``): ``None`` leaves that code out of
+the machine code, otherwise it is compiled.  A *family* is one choice of
+markers, picked in Python from the noise model before the call, and numba
+caches each family's machine code on its own:
 
 ============  ==================================================================
 family        what it compiles beyond the noise-free paths
@@ -18,6 +19,10 @@ physical      Poisson shot noise drawn per spike, threshold jitter, dark current
 charge        physical noise drawn per readout: charge noise, or shot noise
               from the per-readout reference sampler
 ============  ==================================================================
+
+The physical family's event sampler is compiled for the sensor's reset mode
+only (``event`` is the reset's code; :func:`kernel_name` names the three
+kernels ``physical-modulo``, ``physical-subtract`` and ``physical-zero``).
 
 The first run of a family after an install (or after the package's compiled
 sources change) compiles it and says so once per process on stderr, with the
@@ -36,8 +41,8 @@ from pathlib import Path
 from spikesim._numba_cache import FAMILY_MARK_PREFIX, cache_folder
 from spikesim.errors import bad_value
 
-__all__ = ["COMPILE_SECONDS", "FAMILIES", "announce_compile", "family_of", "family_markers",
-           "family_of_noise", "is_compiled", "mark_compiled"]
+__all__ = ["COMPILE_SECONDS", "FAMILIES", "RESETS", "announce_compile", "family_of",
+           "family_markers", "family_of_noise", "is_compiled", "kernel_name", "mark_compiled"]
 
 #: The families and their markers ``(paper, event, readout)`` for the kernel.
 FAMILIES: dict[str, tuple[bool | None, bool | None, bool | None]] = {
@@ -47,11 +52,15 @@ FAMILIES: dict[str, tuple[bool | None, bool | None, bool | None]] = {
     "charge": (None, None, True),
 }
 
+#: The reset modes, in the order of the kernel's codes (``spikesim._kernels.RESET_*``).
+RESETS = ("modulo", "subtract", "zero")
+
 #: Seconds to compile each family into an empty cache (CPU seconds of one
-#: process, its start and imports included, on the project's 2-core VM;
+#: process, its start and imports included, on the project's 2-core VM; the
+#: physical family per reset mode, 60–77 s;
 #: compilation runs on one core, so an idle machine takes about as long;
 #: ``spikesim compile --measure`` re-measures, docs/performance.md has the table).
-COMPILE_SECONDS = {"noise-free": 30, "paper": 40, "physical": 750, "charge": 55}
+COMPILE_SECONDS = {"noise-free": 20, "paper": 25, "physical": 70, "charge": 50}
 
 _MARK = FAMILY_MARK_PREFIX + "{}.ok"  # beside numba's cache files: this family is in the cache
 _announced: set[str] = set()
@@ -90,19 +99,37 @@ def family_markers(name: str) -> tuple[bool | None, bool | None, bool | None]:
     return FAMILIES[name]
 
 
+def kernel_name(family: str, reset: int | str = 0) -> str:
+    """The name of the compiled kernel a run of ``family`` with reset mode
+    ``reset`` (a name of :data:`RESETS` or its code) loads: the family's own,
+    except that the physical family is compiled per reset mode
+    (``physical-zero``)."""
+    family_markers(family)  # validates
+    if family != "physical":
+        return family
+    name = RESETS[reset] if isinstance(reset, int) else reset
+    if name not in RESETS:
+        raise bad_value("reset", reset, f"one of {', '.join(RESETS)}")
+    return f"physical-{name}"
+
+
+def _family(name: str) -> str:
+    return "physical" if name.startswith("physical") else name
+
+
 def _mark_path(name: str) -> Path:
     return cache_folder(Path(__file__).parent) / _MARK.format(name)
 
 
 def is_compiled(name: str) -> bool:
-    """Whether family ``name`` was compiled into this install's numba cache (a
+    """Whether kernel ``name`` (:func:`kernel_name`) was compiled into this install's numba cache (a
     mark written after its first compilation; removed with the cache files when
     the package's compiled sources change, ``spikesim._numba_cache.sync_cache``)."""
     return _mark_path(name).is_file()
 
 
 def announce_compile(name: str, stream=None) -> bool:
-    """Before the first kernel call of family ``name`` in this process: when its
+    """Before the first call of kernel ``name`` (:func:`kernel_name`) in this process: when its
     machine code is not in the cache yet, say on ``stream`` (stderr) that it is
     being compiled, for about how long and where the cache lives.  Returns True
     when it printed.  Set ``SPIKESIM_QUIET_COMPILE=1`` to silence it."""
@@ -114,14 +141,15 @@ def announce_compile(name: str, stream=None) -> bool:
         return False
     folder = cache_folder(Path(__file__).parent)
     print(f"spikesim: compiling the {name} simulation kernels for this machine, once "
-          f"(about {COMPILE_SECONDS[name]} s on 2 cores); the machine code is cached in "
+          f"(about {COMPILE_SECONDS[_family(name)]} s on 2 cores); the machine code is cached in "
           f"{folder} and later runs load it in about a second "
           "(`spikesim compile` does this ahead)", file=stream or sys.stderr, flush=True)
     return True
 
 
 def mark_compiled(name: str) -> None:
-    """Record that family ``name`` is in the cache (after a kernel call)."""
+    """Record that kernel ``name`` (:func:`kernel_name`) is in the cache (after a
+    kernel call)."""
     path = _mark_path(name)
     if path.is_file():
         return

@@ -273,8 +273,10 @@ class SimulationRun:
         clean, clean_state = (_kernel_inputs(sensor, self.seed, None, pool=_STATE_POOL)
                               if self.clean_twin else _unused_inputs())
         family = families.family_of(noisy)  # the noise code the kernel compiles
-        markers = families.family_markers(family)
-        families.announce_compile(family)
+        paper, event, readout = families.family_markers(family)
+        event = noisy.reset if event else None  # the event sampler is compiled per reset mode
+        kernel = families.kernel_name(family, noisy.reset)
+        families.announce_compile(kernel)
         dummy_out = np.zeros((1, 1, 1), np.uint8)
         init = 1 if sensor.init == "uniform" else 0  # the kernel's first call initialises
         bar = None
@@ -302,9 +304,10 @@ class SimulationRun:
                     c_out = buffers.get(out.shape) if self.clean_twin else dummy_out
                 _kernels.simulate_chunk(key_buffer, w, n0, sched, noisy, noisy_state, out, init,
                                         n1 < self.n_readouts,  # keep the state for a next chunk
-                                        self.clean_twin, clean, clean_state, c_out, *markers)
+                                        self.clean_twin, clean, clean_state, c_out, paper,
+                                        event, readout)
                 if init != -1:
-                    families.mark_compiled(family)
+                    families.mark_compiled(kernel)
                 init = -1  # later chunks carry the state on
                 gt, sel = self._ground_truth(n0, n1)
                 yield SpikeChunk(n0, out, c_out if self.clean_twin else None, gt, sel)

@@ -223,15 +223,19 @@ def compile_first(tasks: list[dict]) -> list[str]:
     this process, before local workers start, so that they load the machine
     code from numba's cache rather than each compiling it at the same time.
     Returns the families compiled (none when all were cached)."""
-    from spikesim.families import family_of_noise, is_compiled
+    from spikesim.families import family_of_noise, is_compiled, kernel_name
     from spikesim.precompile import precompile
     from spikesim.sensor import Sensor
 
-    needed = {family_of_noise(Sensor.from_dict(t["sensor"]).noise) for t in tasks}
-    cold = sorted(name for name in needed if not is_compiled(name))
-    if cold:
-        precompile(cold)
-    return cold
+    needed = set()
+    for task in tasks:
+        sensor = Sensor.from_dict(task["sensor"])
+        family = family_of_noise(sensor.noise)
+        needed.add((kernel_name(family, sensor.reset), family, sensor.reset))
+    cold = sorted(k for k in needed if not is_compiled(k[0]))
+    for _, family, reset in cold:
+        precompile([family], resets=[reset])
+    return [name for name, _, _ in cold]
 
 
 def build_dataset(manifest: Manifest, out_dir: str | os.PathLike, workers: int = 1,

@@ -377,8 +377,7 @@ def test_refill_draws_every_stale_lane_as_the_scalar_draw_and_keeps_the_rest(
     stale = sum(1 << int(k) for k in stale_lanes)
     wu[_event.MASKS, _event.FRESH] = ~np.uint64(stale)
     if packed and n_stale:
-        _event._packed_refill(reset, jitter > 0.0, np.uint64(stale), electrons, ev, jitter, wf,
-                              wu)
+        _event._packed_refill(reset, np.uint64(stale), electrons, ev, jitter, wf, wu)
     else:
         _event.event_refill(electrons, ev, reset, jitter, wf, wu)
         assert int(wu[_event.MASKS, _event.FRESH]) == 2**64 - 1

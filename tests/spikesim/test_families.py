@@ -63,7 +63,8 @@ for noise in (None, ss.noise.PaperNoise(sigma_g=10.0)):
     ss.simulate(moving, ss.Sensor(height=8, width=70, noise=noise), 30)
     seen.append({name: len(f.overloads) for name, f in (
         ("paper", _kernels._fast_paper), ("event", _event.first_waits),
-        ("shot", _poisson.poisson), ("kernel", _kernels.simulate_rows))})
+        ("shot", _poisson.poisson))})
+    seen[-1]["kernel"] = sum(len(k.overloads) for k in _kernels._ROWS_KERNELS.values())
 print(json.dumps(seen))
 """
 
@@ -119,3 +120,59 @@ def test_spikesim_compile_rejects_an_unknown_family(capsys):
     assert main(["compile", "turbo"]) != 0
     err = capsys.readouterr().err
     assert "family" in err and "turbo" in err and len(err.strip().splitlines()) == 1
+
+
+PHYSICAL = """
+import json
+import numpy as np
+import spikesim as ss
+from spikesim import _event, _kernels
+img = np.random.default_rng(0).uniform(0, 1, (4, 70, 3)).astype(np.float32)
+moving = ss.scenes.Keyframes([0.0, 0.001], [img, np.roll(img, 2, axis=1)])
+ss.simulate(moving, ss.Sensor(height=4, width=70, noise=ss.noise.PhysicalNoise(), reset="zero"), 30)
+print(json.dumps({name: len(getattr(mod, name).overloads) for mod, name in (
+    (_event, "_SETTLE_MODULO"), (_event, "_SETTLE_SUBTRACT"),
+    (_event, "_SETTLE_ZERO"), (_event, "_WALK_M"), (_event, "_WALK_S"),
+    (_event, "_WALK_Z"), (_event, "_PACKED_M"), (_event, "_PACKED_Z"))}))
+"""
+
+
+@pytest.mark.slow
+def test_a_physical_run_compiles_the_event_sampler_of_its_own_reset_mode_only(tmp_path):
+    done = subprocess.run([sys.executable, "-c", PHYSICAL], capture_output=True, text=True,
+                          cwd=ROOT, timeout=900,
+                          env=dict(os.environ, SPIKESIM_QUIET_COMPILE="1",
+                                   NUMBA_CACHE_DIR=str(tmp_path)))
+    assert done.returncode == 0, done.stderr[-2000:]
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert seen["_SETTLE_ZERO"] == 1 and seen["_WALK_Z"] >= 1
+    assert seen["_PACKED_Z"] >= 1
+    others = {k: v for k, v in seen.items() if not k.endswith(("ZERO", "_Z"))}
+    assert set(others.values()) == {0}, others
+
+
+def test_the_physical_family_is_compiled_per_reset_mode():
+    assert families.kernel_name("physical", "subtract") == "physical-subtract"
+    assert families.kernel_name("physical", 2) == "physical-zero"
+    assert families.kernel_name("paper", "zero") == "paper"
+    from spikesim import _kernels
+
+    assert [getattr(_kernels, f"RESET_{r.upper()}") for r in families.RESETS] == [0, 1, 2]
+    with pytest.raises(ValueError, match="reset"):
+        families.kernel_name("physical", "wrap")
+
+
+def test_a_dataset_build_compiles_the_kernels_its_sensors_need_once(monkeypatch):
+    from spikesim.dataset import build
+
+    calls = []
+    monkeypatch.setattr(families, "is_compiled", lambda name: name == "paper")
+    monkeypatch.setattr("spikesim.precompile.precompile",
+                        lambda names, resets: calls.append((names, list(resets))))
+    sensors = [ss.Sensor(height=4, width=8, noise=ss.noise.PhysicalNoise(), reset="subtract"),
+               ss.Sensor(height=4, width=8, noise=ss.noise.PhysicalNoise(), reset="subtract"),
+               ss.Sensor(height=4, width=8, noise=ss.noise.PaperNoise(sigma_g=5.0)),
+               ss.Sensor(height=4, width=8)]
+    cold = build.compile_first([{"sensor": s.to_dict()} for s in sensors])
+    assert cold == ["noise-free", "physical-subtract"]
+    assert sorted(calls) == [(["noise-free"], ["modulo"]), (["physical"], ["subtract"])]

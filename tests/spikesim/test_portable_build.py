@@ -151,8 +151,8 @@ ev = np.zeros((4, 64))
 ev[_event.NEED] = 900.0
 wf = np.zeros((_event.EV_WORK_F, 64))
 wu = np.zeros((_event.EV_WORK_U, 64), np.uint64)
-_event._PACKED_S0(np.uint64(0x5555_5555_0000_FFFF), np.full(64, 1000.0), ev, 0.0, wf, wu)
-asm = "".join(_event._PACKED_S0.inspect_asm().values())
+_event._PACKED_S(np.uint64(0x5555_5555_0000_FFFF), np.full(64, 1000.0), ev, 0.0, wf, wu)
+asm = "".join(_event._PACKED_S.inspect_asm().values())
 print(native(), len(re.findall(r"\\n\\s+j(?!mp\\b)[a-z]+\\s", asm)))
 """
 
