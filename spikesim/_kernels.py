@@ -758,7 +758,6 @@ def _store_state(frac, whole, y, x0, f, w):
         whole[y, x0 + lane] = w[lane]
 
 
-@njit(inline="always", **_opts)
 def _aligned_rows(n, dtype):
     """``n`` uninitialised rows of :data:`BLOCK` 8-byte lanes (C-contiguous),
     the first lane at a multiple of 64 bytes, so that every 8-lane part of a
@@ -767,7 +766,7 @@ def _aligned_rows(n, dtype):
     slower per lane in a cache-resident microbenchmark with rows 32 bytes
     off; a whole moving physical run 8 %, docs/model.md, Speed)."""
     buf = np.empty(n * BLOCK + 8, dtype)
-    skip = (8 - (np.int64(buf.ctypes.data) >> 3) % 8) % 8
+    skip = (8 - (buf.ctypes.data >> 3) % 8) % 8
     return buf[skip:skip + n * BLOCK].reshape((n, BLOCK))
 
 
@@ -842,11 +841,29 @@ def simulate_chunk(frames, width, t_off, runs, model, state, out, init, keep,
     args = (rows, frames, np.int64(width), np.int64(t_off), runs, model, state, out,
             np.int64(init), bool(keep), bool(twin), twin_model, twin_state, twin_out)
     kernel = simulate_rows(paper, event, readout)
+    n_words = max(1, int(runs.stop[-1] - runs.start[0]))
     if parts == 1:
-        kernel(np.int64(0), np.int64(1), *args)
+        kernel(np.int64(0), np.int64(1), *args, *_work_rows(n_words))
         return
     list(_thread_pool(threads).map(
-        lambda k: kernel(np.int64(k), np.int64(parts), *args), range(parts)))
+        lambda k: kernel(np.int64(k), np.int64(parts), *args, *_work_rows(n_words)),
+        range(parts)))
+
+
+def _work_rows(n_words):
+    """A call's work rows (:func:`simulate_rows`' last arguments): the
+    per-readout steps' float64 and uint64 rows (:func:`_block_runs`), a
+    block's event state ``ev`` (4, 64), accumulator ``f``, ``w`` and initial
+    fraction ``f0`` (64), and ``words`` (a run's spike words).  Made here, not
+    in the kernel, so that the kernel allocates nothing and needs no
+    reference counts: with them, every call of a block function from the
+    kernel counted each array argument up and down atomically, about 220 ns a
+    64-pixel block, which doubled the time of a 1-readout call."""
+    ev = _aligned_rows(4, np.float64)
+    ev[:] = 0.0
+    return (_aligned_rows(SCRATCH_F, np.float64), _aligned_rows(SCRATCH_U, np.uint64), ev,
+            np.empty(BLOCK, np.uint64), np.empty(BLOCK, np.int64), np.empty(BLOCK, np.uint64),
+            np.empty(n_words, np.uint64))
 
 
 _POOL: list = [None, 0, 0]  # the pool, its size and the process that made it
@@ -871,18 +888,11 @@ def _make_rows_kernel(paper, event, readout):
     ``readout`` are constants of the compiled function, so numba prunes the
     branches they rule out before typing them."""
 
-    @njit(nogil=True, **_opts)
+    @njit(nogil=True, **_inner)
     def rows_kernel(part, parts, rows, frames, width, t_off, runs, model, state, out, init, keep,
-                    twin, twin_model, twin_state, twin_out):
+                    twin, twin_model, twin_state, twin_out, scratch_f, scratch_u, ev, f, w, f0,
+                    words):
         height = frames.shape[0]
-        scratch_f = _aligned_rows(SCRATCH_F, np.float64)
-        scratch_u = _aligned_rows(SCRATCH_U, np.uint64)
-        ev = _aligned_rows(4, np.float64)  # a block's event state
-        ev[:] = 0.0
-        f = np.empty(BLOCK, np.uint64)  # a block's accumulator
-        w = np.empty(BLOCK, np.int64)
-        f0 = np.empty(BLOCK, np.uint64)  # its initial fraction, for the twin
-        words = np.empty(max(1, runs.stop[-1] - runs.start[0]), np.uint64)  # a run's spikes
         for group in range(part, (height + rows - 1) // rows, parts):
             for y in range(group * rows, min(height, group * rows + rows)):
                 _simulate_row(np.int64(y), frames, width, t_off, runs, model, state, out, init,
@@ -898,8 +908,8 @@ _ROWS_KERNELS: dict = {}
 def simulate_rows(paper, event, readout):
     """The compiled entry point of a kernel family (made once per process):
     it takes the row groups ``part, part + parts, …`` (``rows`` rows each) of
-    :func:`simulate_chunk` (its other arguments but the markers), with the
-    call's work rows, and releases the GIL."""
+    :func:`simulate_chunk` (its other arguments but the markers), then the
+    call's work rows (:func:`_work_rows`), and releases the GIL."""
     key = (paper, event, readout)
     kernel = _ROWS_KERNELS.get(key)
     if kernel is None:

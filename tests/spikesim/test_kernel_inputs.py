@@ -143,7 +143,6 @@ def test_chunks_a_consumer_keeps_are_never_reused_by_later_runs():
         sim._OUTPUT_POOL.clear()
 
 
-@numba.njit(cache=False)
 def _rows_of(n):
     f = _kernels._aligned_rows(n, np.float64)
     u = _kernels._aligned_rows(n + 1, np.uint64)
@@ -155,7 +154,10 @@ def _rows_of(n):
 def test_work_rows_start_on_a_cache_line():
     """The block's work rows are (n, 64) C-contiguous lanes starting at a
     multiple of 64 bytes, so every 8-lane part of a row is one cache line,
-    whatever address the allocator gave (numba aligns to 32 bytes only)."""
+    whatever address the allocator gave (numpy aligns to 16 or 32 bytes only)."""
+    rows = _kernels._work_rows(5)
+    assert all(r.ctypes.data % 64 == 0 for r in rows[:3]) and rows[-1].shape == (5,)
+    assert (rows[2] == 0.0).all()  # the event state starts at zero
     for n in range(1, 40):
         f_off, u_off, f, u = _rows_of(n)
         assert (f_off, u_off) == (0, 0)
