@@ -222,7 +222,8 @@ def compile_first(tasks: list[dict]) -> list[str]:
     """Compile the kernel families ``tasks`` need (:mod:`spikesim.families`) in
     this process, before local workers start, so that they load the machine
     code from numba's cache rather than each compiling it at the same time.
-    Returns the families compiled (none when all were cached)."""
+    Returns the kernels compiled (:func:`spikesim.families.kernel_name`; none
+    when all were cached)."""
     from spikesim.families import family_of_noise, is_compiled, kernel_name
     from spikesim.precompile import precompile
     from spikesim.sensor import Sensor
