@@ -68,7 +68,8 @@ from spikesim.errors import bad_value
 
 __all__ = ["fit_parameters", "find_hot_pixels", "fit_dark", "flat_samples", "fit_response",
            "region_spreads",
-           "response_spread", "unmix", "SATURATED_RATE", "MIN_FLAT_SPIKES", "DARK_FALLBACK",
+           "response_spread", "unmix", "dark_parameters", "SATURATED_RATE", "MIN_FLAT_SPIKES",
+           "DARK_FALLBACK",
            "DARK_CV2_SE"]
 
 #: Regions whose median rate is at least this are saturated (no gain information).
@@ -295,6 +296,25 @@ def unmix(cv_a2, cv_b2, big_r, kappa2, sigma_q2, config, notes):
             "charge_noise_electrons": math.sqrt(sigma_q2) * e}
 
 
+def dark_parameters(params, rate, dark, hot, b_mean, big_r, dark_known, spread_known):
+    """Into ``params``: the dark current relative to full scale, and the hot
+    pixels' fraction of the dark region and their extra dark rate (from the
+    ``dark`` and ``hot`` masks of ``rate``); the defaults
+    (:data:`DARK_FALLBACK`) where the capture cannot tell (no dark region, or
+    no dark-current spread)."""
+    params["dark_current_rel"] = b_mean / big_r
+    if not spread_known:
+        params["dark_current_spread"] = DARK_FALLBACK["dark_current_spread"]
+    if dark_known:
+        n_hot = int(hot.sum())
+        params["hot_pixel_fraction"] = n_hot / int(dark.sum())
+        params["hot_pixel_dark_rel"] = max(float(np.mean(rate[hot]) - b_mean) / big_r, 0.0) \
+            if n_hot else 0.0
+    else:
+        params["hot_pixel_fraction"] = DARK_FALLBACK["hot_pixel_fraction"]
+        params["hot_pixel_dark_rel"] = DARK_FALLBACK["hot_pixel_dark_rel"]
+
+
 def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=None,
                    planes=None):
     """Fit the model to per-pixel rates and interval moments (see module notes).
@@ -369,18 +389,9 @@ def fit_parameters(rate, mom, n_readouts, dark, flats, levels, config, names=Non
     per_plane = plane_spreads(flat_px, hot_terms, lv, big_r, cv_b2 * b_mean**2, t, kappa2,
                               sigma_q2, planes or ["mono"] * len(flats), means, b_mean,
                               levels, float(config.mismatch_split))
-    n_dark = int(dark.sum()) if dark is not None else 0
+    dark_parameters(params, rate, dark, hot, b_mean, big_r, dark_known, spread_known)
+    n_dark = int(dark.sum()) if dark is not None else 0  # (for the report)
     n_hot = int(hot.sum())
-    params["dark_current_rel"] = b_mean / big_r
-    if not spread_known:
-        params["dark_current_spread"] = DARK_FALLBACK["dark_current_spread"]
-    if dark_known:
-        params["hot_pixel_fraction"] = n_hot / n_dark
-        params["hot_pixel_dark_rel"] = max(float(np.mean(rate[hot]) - b_mean) / big_r, 0.0) \
-            if n_hot else 0.0
-    else:
-        params["hot_pixel_fraction"] = DARK_FALLBACK["hot_pixel_fraction"]
-        params["hot_pixel_dark_rel"] = DARK_FALLBACK["hot_pixel_dark_rel"]
     order = ("full_scale_rate", "electrons_per_threshold", "shot_noise", "dark_current_rel",
              "dark_current_spread", "threshold_mismatch", "prnu", "temporal_threshold_noise",
              "hot_pixel_fraction", "hot_pixel_dark_rel", "charge_noise_electrons")

@@ -71,7 +71,13 @@ import numpy as np
 
 import spikesim as ss
 from spikesim.analysis import theory
-from spikesim.analysis.calibrate_fit import DARK_FALLBACK, find_hot_pixels, fit_dark, unmix
+from spikesim.analysis.calibrate_fit import (
+    DARK_FALLBACK,
+    dark_parameters,
+    find_hot_pixels,
+    fit_dark,
+    unmix,
+)
 from spikesim.analysis.capture import pixel_counts
 from spikesim.analysis.temporal_fit import kappa2_by_bin
 from spikesim.errors import bad_value
@@ -345,18 +351,9 @@ def fit_natural(rate, mom, counts, n_readouts: int, dark, planes, config):
         identified.update(prnu=why, threshold_mismatch=why)
         notes.append("fixed pattern " + why + "; the package defaults' response spread kept")
     params = unmix(p2, cv_b2, big_r, kappa2, sigma_q2, config, notes)
-    params["dark_current_rel"] = b_mean / big_r
-    if not spread_known:
-        params["dark_current_spread"] = DARK_FALLBACK["dark_current_spread"]
-    n_dark = int(dark.sum()) if dark is not None else 0
+    dark_parameters(params, rate, dark, hot, b_mean, big_r, dark_known, spread_known)
+    n_dark = int(dark.sum()) if dark is not None else 0  # (for the report)
     n_hot = int(hot.sum())
-    if dark_known:
-        params["hot_pixel_fraction"] = n_hot / n_dark
-        params["hot_pixel_dark_rel"] = max(float(np.mean(rate[hot]) - b_mean) / big_r, 0.0) \
-            if n_hot else 0.0
-    else:
-        params["hot_pixel_fraction"] = DARK_FALLBACK["hot_pixel_fraction"]
-        params["hot_pixel_dark_rel"] = DARK_FALLBACK["hot_pixel_dark_rel"]
     if chosen is None:
         default = ss.noise.PhysicalNoise()
         params.update(electrons_per_threshold=default.electrons_per_threshold,

@@ -69,16 +69,22 @@ print(json.dumps(seen))
 """
 
 
+def _last_json_line(code, cache):
+    """The JSON of the last line ``code`` prints in a fresh interpreter with an
+    empty numba cache ``cache`` (it must succeed)."""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=ROOT, timeout=900,
+                          env=dict(os.environ, SPIKESIM_QUIET_COMPILE="1",
+                                   NUMBA_CACHE_DIR=str(cache)))
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
 def test_a_noise_free_run_holds_no_noise_code_and_a_paper_run_no_physical_code(tmp_path):
     # in a fresh interpreter and an empty cache (a function loaded from the cache
     # leaves its callees untouched): ``overloads`` lists what was compiled, and
     # code a family leaves out is never typed
-    done = subprocess.run([sys.executable, "-c", COMPILED], capture_output=True, text=True,
-                          cwd=ROOT, timeout=900,
-                          env=dict(os.environ, SPIKESIM_QUIET_COMPILE="1",
-                                   NUMBA_CACHE_DIR=str(tmp_path)))
-    assert done.returncode == 0, done.stderr[-2000:]
-    clean, paper = json.loads(done.stdout.strip().splitlines()[-1])
+    clean, paper = _last_json_line(COMPILED, tmp_path)
     assert clean == {"paper": 0, "event": 0, "shot": 0, "kernel": 1}
     assert paper == {"paper": 1, "event": 0, "shot": 0, "kernel": 2}
 
@@ -139,12 +145,7 @@ print(json.dumps({name: len(getattr(mod, name).overloads) for mod, name in (
 
 @pytest.mark.slow
 def test_a_physical_run_compiles_the_event_sampler_of_its_own_reset_mode_only(tmp_path):
-    done = subprocess.run([sys.executable, "-c", PHYSICAL], capture_output=True, text=True,
-                          cwd=ROOT, timeout=900,
-                          env=dict(os.environ, SPIKESIM_QUIET_COMPILE="1",
-                                   NUMBA_CACHE_DIR=str(tmp_path)))
-    assert done.returncode == 0, done.stderr[-2000:]
-    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    seen = _last_json_line(PHYSICAL, tmp_path)
     assert seen["_SETTLE_ZERO"] == 1 and seen["_WALK_Z"] >= 1
     assert seen["_PACKED_Z"] >= 1
     others = {k: v for k, v in seen.items() if not k.endswith(("ZERO", "_Z"))}
